@@ -1,0 +1,37 @@
+# The two commands the README promises: `make demo` and `make test`.
+# Each creates .venv on first use (needs only python3) and installs what it needs.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test lint typecheck bench soak clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[dev,plot]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/stiction-gateway demo
+
+test: $(STAMP)
+	$(BIN)/ruff check stiction gateway tests bench
+	$(BIN)/mypy stiction gateway
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check stiction gateway tests bench
+
+typecheck: $(STAMP)
+	$(BIN)/mypy stiction gateway
+
+bench: $(STAMP)
+	$(BIN)/python -m bench
+
+soak: $(STAMP)
+	$(BIN)/python -m bench.soak
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

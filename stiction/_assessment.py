@@ -1,0 +1,67 @@
+"""The one result type: :class:`Assessment`.
+
+Every output of the product (the CLI's JSON, the gateway's Modbus registers, its
+Prometheus metrics and its state file) is a view of an ``Assessment``; nothing else
+carries a result.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from typing import Any
+
+__all__ = ["Assessment", "Verdict"]
+
+
+class Verdict(enum.StrEnum):
+    """What the analysis concluded about one window of one loop."""
+
+    STICTION = "stiction"
+    NO_STICTION = "no_stiction"
+    UNDETERMINED = "undetermined"
+    NOT_OSCILLATING = "not_oscillating"
+    BAD_DATA = "bad_data"
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class Assessment:
+    """The verdict on one window of OP/PV, and the stiction size when it applies.
+
+    Valve quantities (``fd``, ``fs``, ``jump``) are fractions of the valve span, as in
+    He & Wang (2014) Table 2; ``fd_op`` and ``fs_op`` are the same in OP units (for
+    ``op_range=(0, 100)``, percent). Fields that were not estimated are ``None``.
+    """
+
+    verdict: Verdict
+    reason: str
+    oscillating: bool = False
+    period_s: float | None = None
+    stiction_index: float | None = None
+    fd: float | None = None
+    fs: float | None = None
+    jump: float | None = None
+    fd_op: float | None = None
+    fs_op: float | None = None
+    cycles_used: int = 0
+    multi_jump: bool = False
+    warnings: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping with exactly the field names of the dataclass."""
+        out = dataclasses.asdict(self)
+        out["verdict"] = str(self.verdict)
+        out["warnings"] = list(self.warnings)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Assessment:
+        """Inverse of :meth:`to_dict`; unknown keys are an error."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(data) - names
+        if unknown:
+            raise ValueError(f"unknown Assessment fields: {sorted(unknown)}")
+        kwargs = dict(data)
+        kwargs["verdict"] = Verdict(kwargs["verdict"])
+        kwargs["warnings"] = tuple(kwargs.get("warnings", ()))
+        return cls(**kwargs)
