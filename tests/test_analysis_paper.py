@@ -110,9 +110,11 @@ def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float) -> 
     (r,) = rows
     a = r.assessment
     if a.verdict == Verdict.STICTION:
-        assert a.fd is not None and a.fs is not None
+        assert a.fd is not None
+        assert a.fs is not None
         assert abs(a.fd / 0.18 - 1) < 0.05
         assert abs(a.fs / 0.20 - 1) < 0.05
     else:
-        assert a.fd is None and a.fs is None
+        assert a.fd is None
+        assert a.fs is None
         assert a.multi_jump or "SI" in a.reason
