@@ -43,6 +43,7 @@ import numpy as np
 from scipy import stats
 
 from ._detect import noise_sd
+from ._segments import closed_rss
 from ._switching import Switches, find_switches
 from ._validate import FloatArray
 
@@ -110,9 +111,9 @@ def _second_step(
     c = np.arange(margin, n - margin)
     left = pre[:, c - 1]
     right = suf[:, c]
-    r_left, a_left, b_left = _closed_rss(left)
-    r_right, a_right, b_right = _closed_rss(right)
-    r_one, _, _ = _closed_rss(pre[:, -1:])
+    r_left, a_left, b_left = closed_rss(left)
+    r_right, a_right, b_right = closed_rss(right)
+    r_one, _, _ = closed_rss(pre[:, -1:])
     two = r_left + r_right
     k = int(np.argmin(two))
     rss2 = float(two[k])
@@ -122,18 +123,6 @@ def _second_step(
     if tau is None:
         return float(b_right[k] - b_left[k])
     return float(a_right[k] - a_left[k])
-
-
-def _closed_rss(s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """RSS and (a, b) of y ~ a + b g from sums (n, Sg, Sgg, Sy, Syg, Syy)."""
-    n, sg, sgg, sy, syg, syy = s
-    det = n * sgg - sg * sg
-    ok = det > 1e-12 * np.maximum(n * sgg, 1e-300)
-    d = np.where(ok, det, 1.0)
-    b = np.where(ok, (n * syg - sg * sy) / d, 0.0)
-    a = np.where(ok, (sy - b * sg) / n, sy / n)
-    r = syy - a * sy - b * syg
-    return np.maximum(r, 0.0), a, b
 
 
 def quantify(
