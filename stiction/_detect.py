@@ -29,7 +29,7 @@ import numpy as np
 from scipy import ndimage
 
 from ._oscillation import detrend
-from ._validate import FloatArray
+from ._validate import FloatArray, dot
 
 __all__ = ["NO_STICTION_SI", "STICTION_SI", "StictionIndex", "half_periods", "stiction_index"]
 
@@ -122,7 +122,7 @@ def _sse(y: FloatArray, basis: FloatArray) -> float:
     """Residual sum of squares of y ~ c + a * basis (least squares)."""
     bc = basis - basis.mean()
     yc = y - y.mean()
-    den = float(bc @ bc)
-    a = float(bc @ yc) / den if den > 0 else 0.0
+    den = dot(bc, bc)
+    a = dot(bc, yc) / den if den > 0 else 0.0
     r = yc - a * bc
-    return float(r @ r)
+    return dot(r, r)

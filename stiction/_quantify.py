@@ -44,7 +44,7 @@ from scipy import stats
 
 from ._detect import noise_sd
 from ._segments import closed_rss
-from ._switching import Switches, find_switches
+from ._switching import Switches, find_switches, ragged
 from ._validate import FloatArray
 
 __all__ = ["Quantification", "quantify"]
@@ -87,42 +87,47 @@ def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
     return 0.5 * float(np.mean(np.abs(slope)))
 
 
-def _second_step(
-    y: FloatArray, i: int, j: int, tau: float | None, *, margin: int
-) -> float | None:
-    """Is there a second valve jump inside the half cycle ``y[i:j]``?
+def _second_steps(
+    y: FloatArray, i: np.ndarray, j: np.ndarray, tau: float | None, *, margin: int
+) -> FloatArray:
+    """Is there a second valve jump inside each half cycle ``y[i[k]:j[k]]``?
 
     Compares the one-curve fit with the best two-curve fit (same tau, split anywhere at
     least ``margin`` samples from the ends): when the split is significant (F > F_SPLIT)
-    returns the change of the steady state (self-regulating) or slope (integrating) at the
-    split, else None. Sums over the left pieces are prefix sums and over the right pieces
-    suffix sums, so neither suffers cancellation; the basis is referenced to the middle of
-    the half cycle (a scale factor, which the 2-parameter fit does not see).
+    the result is the change of the steady state (self-regulating) or slope (integrating)
+    at the split, else NaN. Sums over the left pieces are prefix sums and over the right
+    pieces suffix sums, so neither suffers cancellation; the basis is referenced to the
+    middle of each half cycle (a scale factor, which the 2-parameter fit does not see).
+    All half cycles at once, as rows of a zero-padded matrix.
     """
+    out = np.full(i.size, np.nan)
     n = j - i
-    if n < 2 * margin + 8:
-        return None
-    t = np.arange(n, dtype=np.float64) - n / 2.0
+    ks = np.flatnonzero(n >= 2 * margin + 8)
+    if ks.size == 0:
+        return out
+    i, n = i[ks], n[ks]
+    idx, mask = ragged(i, n)
+    t = (idx - i[:, None]) - n[:, None] / 2.0
     g = t if tau is None else np.exp(np.clip(-t / tau, -300.0, 300.0))
-    yy = y[i:j] - float(np.mean(y[i:j]))
-    cols = np.stack((np.ones(n), g, g * g, yy, yy * g, yy * yy))
-    pre = np.cumsum(cols, axis=1)  # sums over [0, c]
-    suf = np.cumsum(cols[:, ::-1], axis=1)[:, ::-1]  # sums over [c, n)
-    c = np.arange(margin, n - margin)
-    left = pre[:, c - 1]
-    right = suf[:, c]
-    r_left, a_left, b_left = closed_rss(left)
-    r_right, a_right, b_right = closed_rss(right)
-    r_one, _, _ = closed_rss(pre[:, -1:])
-    two = r_left + r_right
-    k = int(np.argmin(two))
-    rss2 = float(two[k])
-    f = (float(r_one[0]) - rss2) / 2.0 / max(rss2 / (n - 4), 1e-300)
-    if f < F_SPLIT:
-        return None
+    yy = np.where(mask, y[idx], 0.0)
+    yy = np.where(mask, yy - (yy.sum(axis=1) / n)[:, None], 0.0)
+    cols = np.stack((np.ones_like(yy), g, g * g, yy, yy * g, yy * yy)) * mask
+    pre = np.cumsum(cols, axis=2)  # sums over [0, c]
+    suf = np.cumsum(cols[..., ::-1], axis=2)[..., ::-1]  # sums over [c, n)
+    c, mc = ragged(np.full(n.size, margin), n - 2 * margin)
+    r_left, a_left, b_left = closed_rss(np.take_along_axis(pre, (c - 1)[None], axis=2))
+    r_right, a_right, b_right = closed_rss(np.take_along_axis(suf, c[None], axis=2))
+    r_one, _, _ = closed_rss(np.take_along_axis(pre, (n - 1)[None, :, None], axis=2)[..., 0])
+    two = np.where(mc, r_left + r_right, np.inf)
+    k = np.argmin(two, axis=1)[:, None]
+    rss2 = np.take_along_axis(two, k, axis=1)[:, 0]
+    f = (r_one - rss2) / 2.0 / np.maximum(rss2 / (n - 4), 1e-300)
     if tau is None:
-        return float(b_right[k] - b_left[k])
-    return float(a_right[k] - a_left[k])
+        step = np.take_along_axis(b_right - b_left, k, axis=1)[:, 0]
+    else:
+        step = np.take_along_axis(a_right - a_left, k, axis=1)[:, 0]
+    out[ks] = np.where(f >= F_SPLIT, step, np.nan)
+    return out
 
 
 def quantify(
@@ -161,14 +166,11 @@ def quantify(
     bad_fit = rms > np.maximum(RESID_NOISE_FACTOR * sigma, RESID_SWING_FRACTION * swing_pv)
     if dj.size:
         typical = float(np.median(np.abs(dj)))
-        for s_idx in range(sw.a.size):
-            i = int(np.floor(sw.onsets[s_idx])) + 1
-            j = int(np.floor(sw.onsets[s_idx + 1])) + 1
-            step = _second_step(pv, i, j, sw.tau, margin=max(5, int(0.02 * period)))
-            main = dj[s_idx - 1] if s_idx >= 1 else (dj[0] * -1.0)
-            if step is not None and np.sign(step) == np.sign(main) \
-                    and abs(step) >= SECOND_STEP_FRACTION * typical:
-                bad_fit[s_idx] = True
+        c = np.floor(sw.onsets).astype(np.intp) + 1
+        step = _second_steps(pv, c[:-1], c[1:], sw.tau, margin=max(5, int(0.02 * period)))
+        main = np.concatenate(([-dj[0]], dj))[: sw.a.size]
+        bad_fit |= (np.sign(step) == np.sign(main)) & (np.abs(step) >= SECOND_STEP_FRACTION
+                                                      * typical)
     same_dir = np.zeros(sw.a.size, dtype=bool)
     if dj.size >= 2:
         same = np.sign(dj[1:]) == np.sign(dj[:-1])

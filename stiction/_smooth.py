@@ -18,7 +18,7 @@ import math
 import numpy as np
 from scipy import fft, optimize
 
-from ._validate import FloatArray
+from ._validate import FloatArray, dot
 
 __all__ = ["smooth"]
 
@@ -92,7 +92,8 @@ def smooth(
             if s is None:  # GCV on the gap-filled, re-weighted data (as Garcia's code does)
                 s_ = _gcv_s(dct_r, lam2)
             z_new = np.asarray(fft.idct(dct_r / (1.0 + s_ * lam2), norm="ortho"))
-            change = float(np.linalg.norm(z_new - z)) / max(float(np.linalg.norm(z_new)), 1e-300)
+            dz = z_new - z
+            change = math.sqrt(dot(dz, dz) / max(dot(z_new, z_new), 1e-300))
             z = z_new
             if change < tol:
                 break
