@@ -14,7 +14,7 @@ import numpy as np
 
 from ._validate import FloatArray
 
-__all__ = ["Prefix", "closed_rss", "exp_basis", "prefix", "rss", "sums2"]
+__all__ = ["Prefix", "closed_rss", "exp_basis", "prefix", "ragged", "rss", "sums2"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,3 +76,12 @@ def closed_rss(s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     a = (sy - b * sg) / np.maximum(n, 1.0)
     r = syy - a * sy - b * syg
     return np.maximum(r, 0.0), a, b
+
+
+def ragged(starts: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Index matrix ``(K, max(lengths))`` of the intervals ``[starts[k], starts[k] +
+    lengths[k])`` and the mask of its valid entries (padding repeats ``starts[k]``)."""
+    width = max(int(lengths.max()), 1) if lengths.size else 1
+    off = np.arange(width)
+    mask = off[None, :] < lengths[:, None]
+    return starts[:, None] + np.where(mask, off[None, :], 0), mask

@@ -28,11 +28,11 @@ import math
 import numpy as np
 from scipy import optimize, signal
 
-from ._segments import closed_rss, exp_basis, sums2
+from ._segments import closed_rss, exp_basis, ragged, sums2
 from ._smooth import smooth
 from ._validate import FloatArray
 
-__all__ = ["Switches", "departures", "find_switches", "fitted_curve", "ragged"]
+__all__ = ["Switches", "departures", "find_switches", "fitted_curve"]
 
 POINTS_PER_PERIOD = 48
 PROMINENCE = 0.3
@@ -151,15 +151,6 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
         options={"xatol": 1e-3},
     )
     return math.exp(float(res.x))
-
-
-def ragged(starts: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Index matrix ``(K, max(lengths))`` of the intervals ``[starts[k], starts[k] +
-    lengths[k])`` and the mask of its valid entries (padding repeats ``starts[k]``)."""
-    width = max(int(lengths.max()), 1) if lengths.size else 1
-    off = np.arange(width)
-    mask = off[None, :] < lengths[:, None]
-    return starts[:, None] + np.where(mask, off[None, :], 0), mask
 
 
 def _basis(t: FloatArray, t0: FloatArray, tau: float | None) -> FloatArray:
