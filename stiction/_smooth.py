@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import fft, optimize
+from scipy import fft
 
 from ._validate import FloatArray, dot
 
@@ -30,19 +30,29 @@ def _lambda2(n: int) -> FloatArray:
     return np.asarray(lam * lam)
 
 
+_LOG_S_GRID = np.arange(-6.0, 12.0 + 1e-9, 0.25)
+
+
 def _gcv_s(dct_y: FloatArray, lam2: FloatArray) -> float:
-    """The ``s`` minimising GCV(s) = (RSS/n) / (1 - tr(H)/n)^2 (searched on log10 s)."""
+    """The ``s`` minimising GCV(s) = (RSS/n) / (1 - tr(H)/n)^2, searched on log10 s.
+
+    GCV is evaluated on a grid of log10 s in [-6, 12] (step 0.25) in one vectorised pass,
+    and the minimum placed by a parabola through the best grid point and its neighbours
+    (GCV is smooth in log s); this replaces a scalar search of ~20 sequential evaluations.
+    """
     n = dct_y.size
-
-    def gcv(log_s: float) -> float:
-        gamma = 1.0 / (1.0 + 10.0**log_s * lam2)
-        rss = float(np.sum((dct_y * (gamma - 1.0)) ** 2))
-        tr = float(np.sum(gamma))
-        return rss / n / max(1.0 - tr / n, 1e-12) ** 2
-
-    res = optimize.minimize_scalar(gcv, bounds=(-6.0, 12.0), method="bounded",
-                                   options={"xatol": 0.05})
-    return float(10.0 ** res.x)
+    gamma = 1.0 / (1.0 + 10.0 ** _LOG_S_GRID[:, None] * lam2[None, :])
+    rss = np.einsum("ij,j->i", (gamma - 1.0) ** 2, dct_y * dct_y)
+    tr = gamma.sum(axis=1)
+    g = rss / n / np.maximum(1.0 - tr / n, 1e-12) ** 2
+    i = int(np.argmin(g))
+    x = float(_LOG_S_GRID[i])
+    if 0 < i < g.size - 1:
+        g0, g1, g2 = float(g[i - 1]), float(g[i]), float(g[i + 1])
+        den = g0 - 2.0 * g1 + g2
+        if den > 0:
+            x += 0.25 * float(np.clip(0.5 * (g0 - g2) / den, -0.5, 0.5))
+    return float(10.0**x)
 
 
 def _leverage(s: float) -> float:
