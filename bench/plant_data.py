@@ -74,6 +74,7 @@ def evaluate(verbose: bool = True) -> dict[str, float]:
         _show(f"  loop type {lt}", p)
     tag_pairs = [(p[0][0], sum(x[1] for x in p) * 2 >= len(p)) for p in by_tag.values()]
     out["tags"] = _show("tags (majority vote)", tag_pairs)
+    out["tags_fp"] = float(_matrix(tag_pairs)[2])
     if verbose:
         print("per tag (label: records predicted stiction / records):")
         for tag, p in sorted(by_tag.items()):
