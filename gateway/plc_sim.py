@@ -28,7 +28,9 @@ setpoint step (``sp_step`` at ``sp_step_time``) so sticky loops start their limi
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
+import itertools
 import logging
 from collections.abc import Sequence
 from pathlib import Path
@@ -135,7 +137,7 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
         next_address = address + REGISTERS_PER_LOOP
         loops.append(SimLoop(lname, sc, noise, address, window, result_address))
     used.sort()
-    for (a0, n0), (a1, n1) in zip(used, used[1:], strict=False):
+    for (a0, n0), (a1, n1) in itertools.pairwise(used):
         if a1 < a0 + REGISTERS_PER_LOOP:
             problems.add(f"loop {n1}", "address", f"registers {a1}..{a1 + 3} overlap loop {n0}")
     top.done()
@@ -248,10 +250,8 @@ class PlcSim:
     async def __aexit__(self, *exc: object) -> None:
         if self._task is not None:
             self._task.cancel()
-            try:
+            with contextlib.suppress(asyncio.CancelledError):
                 await self._task
-            except asyncio.CancelledError:
-                pass
         await self.server.stop()
 
 
