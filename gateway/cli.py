@@ -12,6 +12,10 @@ import logging
 import sys
 from pathlib import Path
 
+from . import plc_sim
+from .app import install_stop_signals, run
+from .config import load_config
+from .demo import run_demo
 from .errors import ConfigError, GatewayError
 
 __all__ = ["build_parser", "main"]
@@ -67,19 +71,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "check-config":
-        from .config import load_config
-
         cfg = load_config(args.file)
         print(f"{args.file}: ok ({len(cfg.devices)} device(s), {len(cfg.loops)} loop(s))")
         return 0
     if args.command == "run":
-        from .app import run
-        from .config import load_config
-
         return run(load_config(args.config))
     if args.command == "plc-sim":
-        from . import plc_sim
-
         cfg = plc_sim.load_sim_config(args.config)
         if args.write_gateway_config:
             text = plc_sim.dump_yaml(plc_sim.gateway_config(cfg))
@@ -90,8 +87,6 @@ def _dispatch(args: argparse.Namespace) -> int:
             return 0
 
         async def serve_sim() -> None:
-            from .app import install_stop_signals
-
             stop = asyncio.Event()
             install_stop_signals(stop)
             await plc_sim.serve(cfg, stop)
@@ -99,8 +94,6 @@ def _dispatch(args: argparse.Namespace) -> int:
         asyncio.run(serve_sim())
         return 0
     if args.command == "demo":
-        from .demo import run_demo
-
         logging.getLogger().setLevel(logging.WARNING)  # the table is the output
         asyncio.run(run_demo(args.duration))
         return 0
