@@ -77,9 +77,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "run":
         return run(load_config(args.config))
     if args.command == "plc-sim":
-        cfg = plc_sim.load_sim_config(args.config)
+        sim_cfg = plc_sim.load_sim_config(args.config)
         if args.write_gateway_config:
-            text = plc_sim.dump_yaml(plc_sim.gateway_config(cfg))
+            text = plc_sim.dump_yaml(plc_sim.gateway_config(sim_cfg))
             Path(args.write_gateway_config).write_text(
                 "# Gateway config for the simulated PLC of " + args.config + "\n" + text,
                 encoding="utf-8")
@@ -89,7 +89,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         async def serve_sim() -> None:
             stop = asyncio.Event()
             install_stop_signals(stop)
-            await plc_sim.serve(cfg, stop)
+            await plc_sim.serve(sim_cfg, stop)
 
         asyncio.run(serve_sim())
         return 0

@@ -181,9 +181,9 @@ def _build_banks(cfg: SimConfig) -> list[_Bank]:
         valve = cls(**{f.name: np.array([getattr(v, f.name) for v in valves], dtype=float)
                        for f in dataclasses.fields(cls)})
         params = [sc.loop_params(cfg.loops[i].noise) for sc, i in zip(scs, members, strict=True)]
-        lp = LoopParams(**{f.name: np.array([getattr(p, f.name) for p in params])
+        lparams = LoopParams(**{f.name: np.array([getattr(p, f.name) for p in params])
                            for f in dataclasses.fields(LoopParams)})
-        bank = LoopBank(len(members), lp, valve, ts=cfg.ts, seed=cfg.seed + k)
+        bank = LoopBank(len(members), lparams, valve, ts=cfg.ts, seed=cfg.seed + k)
         banks.append(_Bank(bank, np.array(members, dtype=np.intp), bank.pv0.copy(),
                            np.array([sc.sp_step for sc in scs]),
                            np.array([sc.sp_step_time for sc in scs])))
