@@ -13,6 +13,7 @@ A loop is *stale* when it has had no good sample for ``STALE_POLLS`` polls.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
 import logging
 import random
@@ -82,15 +83,26 @@ class DevicePoller:
         self.missed_ticks = 0
         self.tick_starts: list[float] = []  # loop.time() of recent poll starts (jitter)
         self._last_good = np.full(len(store.loops), -1, dtype=np.int64)
+        self._stop = asyncio.Event()
+
+    def stop(self) -> None:
+        """Finish the poll in progress (if any) and return from :meth:`run`.
+
+        Shutdown asks rather than cancels: cancelling a task inside a pymodbus request
+        can leave it waiting forever (seen with pymodbus 3.16 on Python 3.11)."""
+        self._stop.set()
 
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
         due = loop.time()
         try:
-            while True:
+            while not self._stop.is_set():
                 delay = due - loop.time()
                 if delay > 0:
-                    await asyncio.sleep(delay)
+                    with contextlib.suppress(TimeoutError):
+                        await asyncio.wait_for(self._stop.wait(), delay)
+                    if self._stop.is_set():
+                        break
                 self._note_start(loop.time())
                 await self.poll_once()
                 due += self.period
