@@ -9,6 +9,7 @@ import struct
 
 import numpy as np
 import pytest
+from gateway_helpers import gateway_for, run, sim_config
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -26,8 +27,6 @@ from gateway.inputs.modbus import (
 )
 from gateway.plc_sim import PlcSim
 from gateway.result_server import RegisterServer
-
-from gateway_helpers import gateway_for, run, sim_config
 
 ORDERS = ["big", "little"]
 FAKE = "gateway_fake_analyze:analyze"  # no analysis runs here; keeps stiction.analyze out
