@@ -93,6 +93,14 @@ class Gateway:
     def loop_config(self, name: str) -> LoopConfig:
         return self.config.loops[self.store.index[name]]
 
+    def align_polls(self, phase_ref: float) -> None:
+        """Poll on the grid ``phase_ref + n * period`` (loop.time() seconds) instead of
+        from start-up. The demo and tests set it half a step after the simulated PLC's
+        steps, so that at high ``time_scale`` every simulated sample is read exactly once
+        (timer jitter of a millisecond is a large part of a 25 ms step)."""
+        for p in self.pollers:
+            p.phase_ref = phase_ref
+
     async def __aenter__(self) -> Gateway:
         await self.scheduler.start()
         try:

@@ -16,6 +16,7 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
+import math
 import random
 import time
 
@@ -84,6 +85,7 @@ class DevicePoller:
         self.tick_starts: list[float] = []  # loop.time() of recent poll starts (jitter)
         self._last_good = np.full(len(store.loops), -1, dtype=np.int64)
         self._stop = asyncio.Event()
+        self.phase_ref: float | None = None  # loop.time() instant on the tick grid, if set
 
     def stop(self) -> None:
         """Finish the poll in progress (if any) and return from :meth:`run`.
@@ -95,6 +97,8 @@ class DevicePoller:
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
         due = loop.time()
+        if self.phase_ref is not None:  # first tick on the grid phase_ref + n * period
+            due = self.phase_ref + math.ceil((due - self.phase_ref) / self.period) * self.period
         try:
             while not self._stop.is_set():
                 delay = due - loop.time()
