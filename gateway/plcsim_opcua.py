@@ -25,6 +25,7 @@ import dataclasses
 import datetime
 import hmac
 import logging
+import socket
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -111,8 +112,8 @@ class OpcUaPlcServer:
     ) -> None:
         if len(set(loops)) != len(loops):
             raise ValueError("loops: names must be unique")
-        if not 0 < port < 65536:
-            raise ValueError(f"port must be in 1..65535, was {port}")
+        if not 0 <= port < 65536:
+            raise ValueError(f"port must be in 0..65535 (0: a free port), was {port}")
         self.loops = tuple(loops)
         self.host = host
         self.port = port
@@ -142,6 +143,10 @@ class OpcUaPlcServer:
     async def start(self) -> None:
         if self._server is not None:
             return
+        if self.port == 0:  # pick a free port once; a restart keeps it
+            with socket.socket() as sock:
+                sock.bind((self.host, 0))
+                self.port = int(sock.getsockname()[1])
         server = Server(user_manager=_UserMap(self.security.users)
                         if self.security is not None and self.security.users else None)
         await server.init()

@@ -73,8 +73,9 @@ def test_opcua_cert_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
 def test_plcsim_server_argument_checks(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="loops: names must be unique"):
         OpcUaPlcServer(["A", "A"])
-    with pytest.raises(ValueError, match=r"port must be in 1\.\.65535, was 0"):
-        OpcUaPlcServer(["A"], port=0)
+    with pytest.raises(ValueError, match=r"port must be in 0\.\.65535 \(0: a free port\), "
+                       r"was 70000"):
+        OpcUaPlcServer(["A"], port=70000)
     with pytest.raises(ValueError, match=r"policies: unknown policy/mode \('Basic256', "
                        r"'Sign'\)"):
         ServerSecurity(tmp_path / "c", tmp_path / "k", policies=(("Basic256", "Sign"),))

@@ -140,9 +140,9 @@ def test_bad_policy_and_mode(pki: Pki) -> None:
 def test_missing_keys_and_bad_types_reported_together(pki: Pki) -> None:
     assert problems(pki, endpoint=None, poll_interval_s="1s", timeout_s=0,
                     **{"security.trust_store": None, "security.policy": None}) == [
-        "gateway.yaml: device dcs1: missing required key 'endpoint'",
         "gateway.yaml: device dcs1: key 'poll_interval_s': must be a number, was '1s'",
         "gateway.yaml: device dcs1: key 'timeout_s': must be > 0, was 0",
+        "gateway.yaml: device dcs1: missing required key 'endpoint'",
         "gateway.yaml: device dcs1: missing required key 'security.policy'",
         "gateway.yaml: device dcs1: missing required key 'security.trust_store'",
     ]

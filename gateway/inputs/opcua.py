@@ -35,11 +35,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import logging
 import random
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from asyncua import ua
@@ -55,6 +56,7 @@ from asyncua.ua.uaerrors import UaStatusCodeError
 from cryptography import x509
 from cryptography.hazmat.primitives import serialization
 
+from .._schema import MISSING
 from ..errors import DeviceError
 from ..opcua_cert import (
     application_uri_of,
@@ -64,9 +66,19 @@ from ..opcua_cert import (
     load_private_key_file,
 )
 from .base import PointSpec, Quality, ReadResult
-from .opcua_config import OpcUaDeviceConfig, OpcUaPoint, OpcUaSecurity
+from .opcua_config import (
+    OpcUaDeviceConfig,
+    OpcUaPoint,
+    OpcUaSecurity,
+    parse_node_id,
+    parse_plugin_device,
+)
 
-__all__ = ["OpcUaInput"]
+if TYPE_CHECKING:
+    from .._schema import Section
+    from ..config import DeviceConfig
+
+__all__ = ["OpcUaInput", "create_input", "parse_device", "parse_point"]
 
 _log = logging.getLogger(__name__)
 
@@ -97,6 +109,31 @@ _SESSION_LOST = {"BadSessionIdInvalid", "BadSessionClosed", "BadSessionNotActiva
 RECONNECT_CAP_S = 10.0  # longest wait between reconnect attempts after a refusal/timeout
 AUTH_RETRY_CAP_S = 60.0  # ... after a login/certificate refusal (do not lock the account)
 SESSION_TIMEOUT_MS = 60_000  # a gateway that dies without closing frees its session soon
+
+
+# ------------------------------------------------------------------ config plugin
+# gateway.inputs.PROTOCOLS maps ``protocol: opcua`` to this module.
+
+
+def parse_device(sec: Section) -> OpcUaDeviceConfig | Any:
+    """Plugin hook: the device's OPC UA keys (endpoint, security, max_nodes_per_read)."""
+    options = parse_plugin_device(sec)
+    return MISSING if options is None else options
+
+
+def parse_point(sec: Section, options: OpcUaDeviceConfig | None) -> OpcUaPoint | Any:
+    """Plugin hook: a point's ``node`` (the core reads ``scale`` and ``offset``)."""
+    node = sec.req("node", parse_node_id)
+    return MISSING if node is MISSING else OpcUaPoint(node)
+
+
+def create_input(device: DeviceConfig, points: Sequence[PointSpec], **_: Any) -> OpcUaInput:
+    """Plugin hook: the adapter for one configured device."""
+    options: OpcUaDeviceConfig = device.options
+    cfg = dataclasses.replace(options, name=device.name,
+                              poll_interval_s=device.poll_interval_s,
+                              timeout_s=device.timeout_s)
+    return OpcUaInput(cfg, points)
 
 
 def _status_name(code: int) -> str:

@@ -38,6 +38,7 @@ __all__ = [
     "OpcUaSecurity",
     "parse_opcua_device",
     "parse_opcua_point",
+    "parse_plugin_device",
     "parse_security",
     "trust_store_files",
 ]
@@ -350,21 +351,46 @@ def parse_opcua_device(
     protocol = r.get("protocol", _string, required=True)
     if protocol is not None and protocol != "opcua":
         r.error("protocol", f"must be 'opcua' here, was {protocol!r}")
-    endpoint = r.get("endpoint", _endpoint, required=True)
     poll = r.get("poll_interval_s", _number(positive=True), required=True)
     timeout = r.get("timeout_s", _number(positive=True), required=False,
                     default=DEFAULT_TIMEOUT_S)
-    max_nodes = r.get("max_nodes_per_read", _count, required=False, default=0)
     r.unknown(DEVICE_KEYS)
+    cfg = _own_keys(r, raw, prefix=prefix, base_dir=base_dir, problems=problems)
+    if problems or cfg is None:
+        return None, problems
+    return dataclasses.replace(cfg, name=name, poll_interval_s=poll, timeout_s=timeout), problems
+
+
+def _own_keys(r: _Reader, raw: Mapping[str, Any], *, prefix: str, base_dir: Path,
+              problems: list[str]) -> OpcUaDeviceConfig | None:
+    """The OPC UA keys of a device beyond the gateway's core keys (name, protocol,
+    poll_interval_s, timeout_s), which are filled with placeholders."""
+    n_before = len(problems)
+    endpoint = r.get("endpoint", _endpoint, required=True)
+    max_nodes = r.get("max_nodes_per_read", _count, required=False, default=0)
     security = None
     if "security" in raw and raw["security"] is not None:
         security = parse_security(raw["security"], prefix=prefix, base_dir=base_dir,
                                   problems=problems)
-    if problems:
-        return None, problems
-    return OpcUaDeviceConfig(name=name, endpoint=endpoint, poll_interval_s=poll,
-                             timeout_s=timeout, security=security,
-                             max_nodes_per_read=max_nodes), problems
+    if len(problems) > n_before:
+        return None
+    return OpcUaDeviceConfig(name="", endpoint=endpoint, poll_interval_s=1.0,
+                             security=security, max_nodes_per_read=max_nodes)
+
+
+def parse_plugin_device(sec: Any) -> OpcUaDeviceConfig | None:
+    """The gateway config loader's plugin hook: read the OPC UA keys of a device from a
+    :class:`gateway._schema.Section` (the core reads name, protocol, poll_interval_s and
+    timeout_s); problems go to the section's list. Relative paths are resolved against the
+    config file's directory (``problems.source``), or the working directory."""
+    source = str(sec.problems.source)
+    path = Path(source)
+    base_dir = path.parent if path.is_file() else Path.cwd()
+    own = ("endpoint", "max_nodes_per_read", "security")
+    raw = {k: sec.raw_value(k) for k in own if sec.has(k)}  # raw_value marks them as read
+    r = _Reader(sec.problems.lines, f"{source}: {sec.where}", raw)
+    return _own_keys(r, raw, prefix=f"{source}: {sec.where}", base_dir=base_dir,
+                     problems=sec.problems.lines)
 
 
 def parse_node_id(value: Any) -> str:
