@@ -9,6 +9,15 @@ Config format (YAML; documented for users in docs/plc-sim.md)::
     time_scale: 1.0             # process seconds per wall second
     seed: 0                     # random seed (noise, random loads)
     word_order: big             # of the float32 registers
+    protocol: modbus            # or opcua: serve ns=2;s=<loop>.OP / .PV over OPC UA instead
+    opcua:                      # optional, only with protocol: opcua (absent: None/None)
+      certificate: pki/server.der   # server certificate and key (opcua-cert --server)
+      private_key: pki/server.pem
+      policy: Basic256Sha256        # offered policy and mode
+      mode: SignAndEncrypt
+      username: gateway             # optional: require this login ...
+      password_file: secrets/opcua.pw   # ... with the password on this file's first line
+      trusted_clients: pki/trusted-clients/  # optional: accept only these client certs
     loops:
       - name: FIC101
         scenario: table4-case2  # any stiction scenario name (`stiction simulate --help`)
@@ -48,6 +57,7 @@ from ._schema import MISSING, Problems, Section
 from .config import RESULT_BLOCK_SIZE
 from .errors import ConfigError
 from .inputs.modbus import encode_values
+from .plcsim_opcua import POLICY_TYPES, OpcUaPlcServer, ServerSecurity
 from .result_server import RegisterServer
 
 __all__ = ["PlcSim", "SimConfig", "SimLoop", "gateway_config", "load_sim_config",
@@ -77,6 +87,8 @@ class SimConfig:
     time_scale: float = 1.0
     seed: int = 0
     word_order: str = "big"
+    protocol: str = "modbus"
+    opcua: ServerSecurity | None = None  # with protocol opcua: None means None/None
 
 
 def load_sim_config(path: str | Path) -> SimConfig:
@@ -102,6 +114,13 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
     time_scale = top.opt("time_scale", s.number(positive=True), d.time_scale)
     seed = top.opt("seed", s.integer(0), d.seed)
     word_order = top.opt("word_order", s.choice(("big", "little")), d.word_order)
+    protocol = top.opt("protocol", s.choice(("modbus", "opcua")), d.protocol)
+    opcua: Any = None
+    if top.has("opcua"):
+        base = Path(source).parent if Path(source).is_file() else Path.cwd()
+        opcua = _parse_opcua(top.sub("opcua"), base)
+        if protocol != "opcua":
+            top.error("opcua", "needs 'protocol: opcua'")
     raw_loops = top.req("loops", _nonempty_list)
     loops: list[SimLoop] = []
     names: set[str] = set()
@@ -143,7 +162,42 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
     top.done()
     if not problems.ok:
         raise ConfigError(problems.lines)
-    return SimConfig(tuple(loops), listen, unit_id, ts, time_scale, seed, word_order)
+    return SimConfig(tuple(loops), listen, unit_id, ts, time_scale, seed, word_order,
+                     protocol, opcua)
+
+
+def _parse_opcua(sec: Section, base: Path) -> ServerSecurity | Any:
+    """The simulated PLC's OPC UA security (paths relative to the config's directory)."""
+
+    def path(value: Any) -> Path:
+        p = Path(s.string(value)).expanduser()
+        return p if p.is_absolute() else base / p
+
+    def existing(value: Any) -> Path:
+        p = path(value)
+        if not p.exists():
+            raise ValueError(f"file not found: {value}")
+        return p
+
+    cert = sec.req("certificate", existing)
+    key = sec.req("private_key", existing)
+    policy = sec.opt("policy", s.choice(tuple({k[0] for k in POLICY_TYPES} - {"None"})),
+                     "Basic256Sha256")
+    mode = sec.opt("mode", s.choice(("Sign", "SignAndEncrypt")), "SignAndEncrypt")
+    user = sec.opt("username", s.string, None)
+    pw_file = sec.opt("password_file", existing, None)
+    trusted = sec.opt("trusted_clients", existing, None)
+    sec.done()
+    if (user is None) != (pw_file is None):
+        sec.error(None, "username and password_file go together")
+        return MISSING
+    if MISSING in (cert, key, policy, mode, user, pw_file, trusted):
+        return MISSING
+    users = None
+    if user is not None:
+        users = {user: pw_file.read_text(encoding="utf-8").splitlines()[0]}
+    return ServerSecurity(cert, key, policies=((policy, mode),), users=users,
+                          trusted_clients=trusted)
 
 
 def _nonempty_list(value: Any) -> list[Any]:
@@ -209,6 +263,10 @@ class PlcSim:
         host, port = cfg.listen
         self.server = RegisterServer({"holding": self.image, "input": self.image},
                                      host=host, port=port, unit_id=cfg.unit_id)
+        self.opcua: OpcUaPlcServer | None = None
+        if cfg.protocol == "opcua":
+            self.opcua = OpcUaPlcServer([lp.name for lp in cfg.loops], host=host, port=port,
+                                        security=cfg.opcua)
         self._task: asyncio.Task[None] | None = None
         self.period = cfg.ts / cfg.time_scale  # wall seconds per step
         self.phase_ref: float | None = None  # loop.time() of the step grid, once running
@@ -216,7 +274,7 @@ class PlcSim:
 
     @property
     def port(self) -> int:
-        return self.server.port
+        return self.opcua.port if self.opcua is not None else self.server.port
 
     def step(self) -> None:
         """Advance every loop one sample and publish OP/PV in the registers."""
@@ -243,10 +301,16 @@ class PlcSim:
             behind = int((loop.time() - due) // period) + 1
             for _ in range(min(behind, 100)):
                 self.step()
+            if self.opcua is not None:
+                await self.opcua.update(self.op, self.pv)
             due += behind * period
 
     async def __aenter__(self) -> PlcSim:
-        await self.server.start()
+        if self.opcua is not None:
+            await self.opcua.start()
+            await self.opcua.update(self.op, self.pv)
+        else:
+            await self.server.start()
         self._task = asyncio.create_task(self.run(), name="plc-sim")
         await asyncio.sleep(0)  # let run() fix its step grid (phase_ref)
         return self
@@ -261,13 +325,22 @@ class PlcSim:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await self._task
-        await self.server.stop()
+        if self.opcua is not None:
+            await self.opcua.stop()
+        else:
+            await self.server.stop()
 
 
 def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None = None,
                    analysis_interval_s: float = 300.0, metrics_listen: str = "127.0.0.1:9108",
-                   result_listen: str = "127.0.0.1:5020") -> dict[str, Any]:
-    """The gateway config (as a YAML-ready dict) that reads every loop of ``cfg``."""
+                   result_listen: str = "127.0.0.1:5020",
+                   opcua_security: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The gateway config (as a YAML-ready dict) that reads every loop of ``cfg``.
+
+    With ``protocol: opcua`` the device is an OPC UA one; its ``security`` section is
+    ``opcua_security`` if given, else (for a secured plc-sim) one with the plc-sim's policy,
+    mode, certificate and login, and the usual client paths (pki/client.der, pki/client.pem,
+    pki/trusted/) to be created with ``stiction-gateway opcua-cert``."""
     loops: list[dict[str, Any]] = []
     next_result = 0
     for lp in cfg.loops:
@@ -276,15 +349,17 @@ def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None 
         next_result = result_address + RESULT_BLOCK_SIZE
         loops.append({
             "name": lp.name, "device": "plc-sim",
-            "op": {"address": lp.address, "type": "float32"},
-            "pv": {"address": lp.address + 2, "type": "float32"},
+            "op": ({"address": lp.address, "type": "float32"} if cfg.protocol == "modbus"
+                   else {"node": f"ns=2;s={lp.name}.OP"}),
+            "pv": ({"address": lp.address + 2, "type": "float32"} if cfg.protocol == "modbus"
+                   else {"node": f"ns=2;s={lp.name}.PV"}),
             "process": "integrating" if sc.integrating else "self-regulating",
             "kp": sc.kp, "delay_s": sc.theta,
             "window_s": lp.window_s if lp.window_s is not None else 3600.0,
             "result_address": result_address,
         })
     sim_host, sim_port = cfg.listen
-    return {
+    out = {
         "gateway": {"analysis_interval_s": analysis_interval_s,
                     "time_scale": cfg.time_scale},
         "metrics": {"listen": metrics_listen},
@@ -298,6 +373,26 @@ def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None 
         }],
         "loops": loops,
     }
+    if cfg.protocol == "opcua":
+        device: dict[str, Any] = {
+            "name": "plc-sim", "protocol": "opcua",
+            "endpoint": f"opc.tcp://{host or sim_host}:{port if port is not None else sim_port}",
+            "poll_interval_s": cfg.ts, "timeout_s": 1.0,
+        }
+        sec = cfg.opcua
+        if opcua_security is not None:
+            device["security"] = opcua_security
+        elif sec is not None:
+            policy, mode = sec.policies[0]
+            device["security"] = {
+                "policy": policy, "mode": mode, "certificate": "pki/client.der",
+                "private_key": "pki/client.pem", "server_certificate": str(sec.certificate),
+                "trust_store": "pki/trusted/"}
+            if sec.users:
+                device["security"]["username"] = next(iter(sec.users))
+                device["security"]["password_file"] = "secrets/opcua.pw"
+        out["devices"] = [device]
+    return out
 
 
 def dump_yaml(data: dict[str, Any]) -> str:
