@@ -144,7 +144,7 @@ def test_other_checks() -> None:
                             "timeout_s": 1})
     assert problems(data) == [
         "gw.yaml: modbus_server: key 'word_order': must be one of big, little, was 'middle'",
-        "gw.yaml: device opc: key 'protocol': unknown protocol 'profinet' (known: modbus)",
+        "gw.yaml: device opc: key 'protocol': unknown protocol 'profinet' (known: modbus, opcua)",
         "gw.yaml: loop FIC101: key 'op_range': must be finite with hi > lo, was [100, 0]",
         "gw.yaml: loop FIC101: key 'window_s': must hold at least 16 samples of device plc1 "
         "(poll_interval_s 1)",
