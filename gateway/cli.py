@@ -75,7 +75,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         print(f"{args.file}: ok ({len(cfg.devices)} device(s), {len(cfg.loops)} loop(s))")
         return 0
     if args.command == "run":
-        return run(load_config(args.config))
+        return run(load_config(args.config), args.config)
     if args.command == "plc-sim":
         sim_cfg = plc_sim.load_sim_config(args.config)
         if args.write_gateway_config:

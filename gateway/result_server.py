@@ -118,16 +118,30 @@ class ResultServer:
     def __init__(self, settings: ResultServerSettings, loops: Sequence[LoopConfig],
                  store: ResultStore) -> None:
         self.settings = settings
-        self.store = store
-        self.addresses = np.array([lp.result_address for lp in loops], dtype=np.intp)
-        size = int(self.addresses.max()) + RESULT_BLOCK_SIZE if len(loops) else RESULT_BLOCK_SIZE
-        self.image = np.zeros(size, dtype=np.uint16)
+        self.image = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
         host, port = settings.listen
         self.server = RegisterServer({"holding": self.image, "input": self.image},
                                      host=host, port=port, unit_id=settings.unit_id)
+        self.rebind(loops, store)
+
+    def rebind(self, loops: Sequence[LoopConfig], store: ResultStore) -> None:
+        """Serve ``loops`` from ``store`` from now on (start-up and reload): a fresh image,
+        so the blocks of removed loops vanish (reads there get exception 2 or zeros)."""
+        self.store = store
+        self.addresses = np.array([lp.result_address for lp in loops], dtype=np.intp)
+        size = int(self.addresses.max()) + RESULT_BLOCK_SIZE if len(loops) else RESULT_BLOCK_SIZE
+        image = np.zeros(size, dtype=np.uint16)
+        self.image = image
         for i in range(len(loops)):
             self.refresh(i)
-        store.subscribe(self.refresh)
+        self.server.images["holding"] = image
+        self.server.images["input"] = image
+
+        def on_change(i: int) -> None:
+            if self.store is store:  # an old store (before a reload) no longer counts
+                self.refresh(i)
+
+        store.subscribe(on_change)
 
     @property
     def port(self) -> int:
