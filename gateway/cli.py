@@ -57,7 +57,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     logging.basicConfig(level=args.log_level,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    logging.getLogger("pymodbus").setLevel(logging.ERROR)
+    # the adapters report every pymodbus failure as a DeviceError, logged once per outage by
+    # the poller; pymodbus' own per-attempt lines would repeat it every retry
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     try:
         return _dispatch(args)
     except ConfigError as exc:

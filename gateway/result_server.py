@@ -45,12 +45,13 @@ class RegisterServer:
     refused with exception 1 (illegal function) and counted in ``refused_writes``."""
 
     def __init__(self, images: dict[str, NDArray[np.uint16]], *, host: str, port: int,
-                 unit_id: int = 1) -> None:
+                 unit_id: int = 1, capacity: int | None = None) -> None:
         self.images = images
         self.requests = 0  # read requests answered from the image
         self.refused_writes = 0
         self.host, self.port = host, port
-        size = max(len(img) for img in images.values())
+        # the address range pymodbus accepts; images may be swapped for larger ones up to it
+        size = capacity or max(len(img) for img in images.values())
         devices = [self._device(unit_id, size, self._action)]
         if unit_id != 0:
             devices.append(self._device(0, size, self._wrong_unit))
@@ -121,7 +122,8 @@ class ResultServer:
         self.image = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
         host, port = settings.listen
         self.server = RegisterServer({"holding": self.image, "input": self.image},
-                                     host=host, port=port, unit_id=settings.unit_id)
+                                     host=host, port=port, unit_id=settings.unit_id,
+                                     capacity=65536)  # a reload may move blocks anywhere
         self.rebind(loops, store)
 
     def rebind(self, loops: Sequence[LoopConfig], store: ResultStore) -> None:
