@@ -156,3 +156,10 @@ def lateness(starts: list[float], period: float) -> np.ndarray:
     t = np.asarray(starts)
     k = np.round((t - t[0]) / period)
     return t - (t[0] + k * period)
+
+
+async def until(pred: Callable[[], bool], timeout: float = 20.0, step: float = 0.02) -> None:
+    """Wait until ``pred()`` holds (polling: the conditions are plain attributes)."""
+    async with asyncio.timeout(timeout):
+        while not pred():  # noqa: ASYNC110 - nothing to wait on but a counter
+            await asyncio.sleep(step)
