@@ -158,8 +158,8 @@ def lateness(starts: list[float], period: float) -> np.ndarray:
     return t - (t[0] + k * period)
 
 
-async def until(pred: Callable[[], bool], timeout: float = 20.0, step: float = 0.02) -> None:
+async def until(pred: Callable[[], bool], limit_s: float = 20.0, step: float = 0.02) -> None:
     """Wait until ``pred()`` holds (polling: the conditions are plain attributes)."""
-    async with asyncio.timeout(timeout):
+    async with asyncio.timeout(limit_s):
         while not pred():  # noqa: ASYNC110 - nothing to wait on but a counter
             await asyncio.sleep(step)
