@@ -433,8 +433,9 @@ class Gateway:
                 self._stop_http()
             host, port = config.metrics.listen
             self._http = serve_metrics(self.registry, host, port)
-        self._start_pollers(new, {n: d for n, d in due.items() if n in new_devices
-                                  and old.adapter_keys.get(n) == new.adapter_keys.get(n)})
+        # devices that stay keep their schedule (and their connection if their points
+        # are unchanged); new devices start now
+        self._start_pollers(new, {n: d for n, d in due.items() if n in new_devices})
         old_loops = {lp.name for lp in old.config.loops}
         new_loops = {lp.name for lp in config.loops}
         kept = sum(1 for ref in new.bank_states for lc in ref.configs
