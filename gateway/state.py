@@ -228,6 +228,9 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
     a bad file: it is set aside and the report says why."""
     report = RestoreReport()
     p = Path(path)
+    for tmp in p.parent.glob(f".{p.name}.tmp-*"):  # left by a kill in the middle of a write
+        with contextlib.suppress(OSError):
+            tmp.unlink()
     if not p.exists():
         return report
     try:

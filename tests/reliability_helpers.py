@@ -4,12 +4,19 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
+import signal
 import socket
+import subprocess
+import sys
+import time
 import urllib.request
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from pymodbus.client import AsyncModbusTcpClient
 
 from gateway.config import Config, parse_config
@@ -163,3 +170,67 @@ async def until(pred: Callable[[], bool], limit_s: float = 20.0, step: float = 0
     async with asyncio.timeout(limit_s):
         while not pred():  # noqa: ASYNC110 - nothing to wait on but a counter
             await asyncio.sleep(step)
+
+
+# ---------------------------------------------------------------------- subprocesses
+
+PYTHON = sys.executable
+
+
+def wait_port(port: int, limit_s: float = 20.0) -> None:
+    deadline = time.monotonic() + limit_s
+    while time.monotonic() < deadline:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        time.sleep(0.05)
+    raise TimeoutError(f"nothing listens on port {port}")
+
+
+def start_plc_sim(tmp: Path, port: int, loops: int = 2, ts: float = 0.1,
+                  time_scale: float = 1.0) -> subprocess.Popen[bytes]:
+    """``stiction-gateway plc-sim`` as a subprocess with ``loops`` healthy loops (OP of
+    loop k at 4k, PV at 4k + 2)."""
+    cfg = tmp / f"plc-sim-{port}.yaml"
+    cfg.write_text(yaml.safe_dump({
+        "listen": f"127.0.0.1:{port}", "ts": ts, "time_scale": time_scale,
+        "loops": [{"name": f"L{k}", "scenario": "table4-case2" if k % 2 else "healthy",
+                   "noise": 0.05} for k in range(loops)]}))
+    proc = subprocess.Popen([PYTHON, "-m", "gateway.cli", "plc-sim", "--config", str(cfg)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wait_port(port)
+    return proc
+
+
+def sim_loops(n: int, device_name: str = "plc", *, window_s: float = 10.0
+              ) -> list[dict[str, Any]]:
+    return [loop(f"L{k}", device_name, 4 * k, 20 * k, window_s=window_s) for k in range(n)]
+
+
+def start_gateway(cfg: Path, log: Path, env: dict[str, str] | None = None
+                  ) -> subprocess.Popen[bytes]:
+    with open(log, "ab") as f:
+        return subprocess.Popen([PYTHON, "-m", "gateway.cli", "run", "--config", str(cfg)],
+                                stdout=f, stderr=subprocess.STDOUT,
+                                env={**os.environ, **(env or {})})
+
+
+def stop(proc: subprocess.Popen[bytes], sig: int = signal.SIGTERM, limit_s: float = 15.0
+         ) -> int:
+    if proc.poll() is None:
+        proc.send_signal(sig)
+    try:
+        return proc.wait(limit_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.wait(5)
+
+
+def wait_log(log: Path, text: str, limit_s: float = 30.0) -> str:
+    deadline = time.monotonic() + limit_s
+    while time.monotonic() < deadline:
+        content = log.read_text(errors="replace") if log.exists() else ""
+        if text in content:
+            return content
+        time.sleep(0.05)
+    raise TimeoutError(f"{text!r} not in {log}:\n{content}")
