@@ -42,7 +42,7 @@ from reliability_helpers import (
 from gateway.app import Gateway
 from gateway.config import parse_config
 from gateway.inputs.base import Quality
-from gateway.state import BankState, read_state, restore_state
+from gateway.state import BankState, read_state, restore_state, snapshot, write_state
 from gateway.store import ResultStore
 from gateway.windows import WindowBank
 
@@ -144,7 +144,7 @@ def test_sigkill_loses_at_most_one_persist_interval(tmp_path: Path) -> None:
             gw.wait(10)
         finally:
             stop(gw)
-        header, arrays = read_state(state)
+        _header, arrays = read_state(state)
         last = float(arrays["b0_t"][-1])
         lost = kill_wall - last
         n_good = int((arrays["b0_q"] == Quality.GOOD).all(axis=1).sum())
@@ -172,7 +172,6 @@ def _bank() -> tuple[Any, list[BankState], ResultStore]:
 
 
 def _good_state(path: Path) -> None:
-    from gateway.state import snapshot, write_state
     cfg, banks, store = _bank()
     for k in range(30):
         banks[0].bank.append(float(k), np.array([1.0]), np.array([2.0]),
