@@ -384,8 +384,8 @@ class Gateway:
             if isinstance(source, Config):
                 new_config = source
             else:
-                try:
-                    new_config = load_config(source)
+                try:  # parsed in a thread: a big YAML file takes a while, polls go on
+                    new_config = await asyncio.to_thread(load_config, source)
                 except ConfigError as exc:
                     log.error("reload refused, keeping the running config: %d problem(s) "
                               "in %s:\n  %s", len(exc.problems), source,
