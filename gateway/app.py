@@ -391,11 +391,12 @@ class Gateway:
                               "in %s:\n  %s", len(exc.problems), source,
                               "\n  ".join(exc.problems))
                     return False
-            await self._apply(new_config)
+            if not await self._apply(new_config):
+                return False
             self.reloads += 1
             return True
 
-    async def _apply(self, config: Config) -> None:
+    async def _apply(self, config: Config) -> bool:
         old = self.runtime
         old_g, g = old.config.gateway, config.gateway
         if g.analysis_workers != old_g.analysis_workers:
@@ -404,8 +405,15 @@ class Gateway:
             log.warning("reload: state is written to %s from now on (not restored)",
                         g.state_file)
         due = await self._stop_pollers(old)
-        new = self._build(config, old)
-        self._carry_results(old, new)
+        try:
+            new = self._build(config, old)
+            self._carry_results(old, new)
+        except Exception:  # e.g. an adapter that cannot be built: keep the running config
+            log.exception("reload failed, keeping the running config")
+            for p in old.pollers:
+                p.resume()
+            self._start_pollers(old, due)
+            return False
         reused = {id(p.adapter) for p in new.pollers}
         for p in old.pollers:
             if id(p.adapter) not in reused:
@@ -443,6 +451,7 @@ class Gateway:
         log.info("reloaded %s: %d devices, %d loops (%d added, %d removed, %d windows kept)",
                  config.source, len(config.devices), len(config.loops),
                  len(new_loops - old_loops), len(old_loops - new_loops), kept)
+        return True
 
     # ------------------------------------------------------------------ health
 

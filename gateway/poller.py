@@ -139,6 +139,10 @@ class DevicePoller:
         """Make :meth:`run` return after the current tick (or at once while it sleeps)."""
         self._stop.set()
 
+    def resume(self) -> None:
+        """Undo :meth:`request_stop` so :meth:`run` can be started again."""
+        self._stop.clear()
+
     def stalled(self, now: float) -> bool:
         """True when no tick has ended for longer than a tick can legitimately take."""
         if self.last_progress is None:

@@ -159,10 +159,12 @@ def scrape(port: int) -> str:
 
 
 def lateness(starts: list[float], period: float) -> np.ndarray:
-    """How late each tick started against the absolute schedule of the first one, s."""
+    """How late each tick started against the absolute schedule, s: each start's offset
+    from ``t0 + k * period``, less the smallest offset (the schedule's own phase)."""
     t = np.asarray(starts)
     k = np.round((t - t[0]) / period)
-    return t - (t[0] + k * period)
+    d = t - (t[0] + k * period)
+    return d - d.min()
 
 
 async def until(pred: Callable[[], bool], limit_s: float = 20.0, step: float = 0.02) -> None:

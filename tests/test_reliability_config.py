@@ -193,3 +193,45 @@ def _free() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+@pytest.mark.timeout(60)
+def test_reload_that_fails_while_building_keeps_polling(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A config that validates but cannot be applied (here: the adapter of a new device
+    cannot be built) leaves the running config and its pollers in place."""
+    import gateway.inputs.modbus as modbus_plugin  # noqa: PLC0415
+
+    out: dict[str, Any] = {}
+
+    async def go() -> None:
+        plc = await ScriptedPlc(16).start()
+        feeder = asyncio.create_task(feed(plc, 0.02, _wiggle))
+        first = raw_config([device("plc", plc.port, poll=0.05)], [loop("A", "plc", 0, 0)])
+        second = raw_config([device("plc", plc.port, poll=0.05),
+                             device("new", plc.port, poll=0.05)],
+                            [loop("A", "plc", 0, 0), loop("N", "new", 4, 20)])
+        async with Gateway(load_config(_write(tmp_path / "a.yaml", first)),
+                           registry=CollectorRegistry(), analyze=FAKE,
+                           serve_http=False) as gw:
+            await until(lambda: gw.pollers[0].good_polls >= 3)
+
+            def broken(*_: Any, **__: Any) -> Any:
+                raise RuntimeError("adapter cannot be built")
+
+            monkeypatch.setattr(modbus_plugin, "create_input", broken)
+            out["ok"] = await gw.reload(_write(tmp_path / "b.yaml", second))
+            polls = gw.pollers[0].good_polls
+            await asyncio.sleep(0.5)
+            out["polls"] = gw.pollers[0].good_polls - polls
+            out["loops"] = list(gw.store.loops)
+        feeder.cancel()
+        await plc.stop()
+
+    asyncio.run(asyncio.wait_for(go(), 50))
+    assert out["ok"] is False
+    assert out["loops"] == ["A"]
+    assert out["polls"] >= 5
+    assert any("reload failed, keeping the running config" in r.getMessage()
+               for r in caplog.records)
