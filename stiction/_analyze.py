@@ -21,6 +21,7 @@ from ._errors import ParameterError
 from ._oscillation import MIN_PERIOD, detect_oscillation
 from ._quality import check_quality
 from ._quantify import Quantification, quantify
+from ._stickslip import stick_slip
 from ._validate import FloatArray
 
 __all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
@@ -96,6 +97,24 @@ def _validate(
     if not 1.0 <= k_ <= 2.0:
         raise ParameterError("k", f"must lie in [1, 2], was {k!r}")
     return op_a, pv_a, ts_, kp_, delay_, (lo_, hi_), k_
+
+
+def _stick_slip_verdict(op: FloatArray, pv: FloatArray, warnings: list[str],
+                        **base: Any) -> Assessment | None:
+    """Verdict ``stiction`` (not sized) when a window without a usable limit cycle shows
+    stick-slip episodes (:mod:`._stickslip`); None otherwise. Not sized: the He-Wang
+    quantification rests on a limit cycle with one jump per half cycle."""
+    ss = stick_slip(op, pv)
+    if not ss.detected:
+        return None
+    e = max(ss.episodes, key=lambda ep: abs(ep.jump))
+    count = len(ss.episodes)
+    return Assessment(
+        Verdict.STICTION,
+        f"stick-slip without a limit cycle: {count} episode{'s' if count > 1 else ''} where "
+        f"OP ramped (largest: {e.op_travel:+.3g} over {e.stuck} samples) with PV still, then "
+        f"PV jumped ({e.jump:+.3g}) and OP did not; not sized (needs a limit cycle)",
+        warnings=tuple(warnings), **base)
 
 
 def analyze(
@@ -178,6 +197,9 @@ def analyze_details(
     det_name, det = ("PV", pv_c) if integrating else ("OP", op_c)
     osc = detect_oscillation(det)
     if not osc.oscillating or osc.period is None:
+        slip = _stick_slip_verdict(op_c, pv_c, warnings)
+        if slip is not None:
+            return Details(slip, op_c, pv_c)
         return Details(Assessment(Verdict.NOT_OSCILLATING, f"{det_name}: {osc.reason}",
                                   warnings=tuple(warnings)), op_c, pv_c)
     period = osc.period
@@ -200,6 +222,9 @@ def analyze_details(
                             "stiction_index": si.si}
     quant: Quantification | None = None
     if si.si is None:
+        slip = _stick_slip_verdict(op_c, pv_c, warnings, **base)
+        if slip is not None:
+            return Details(slip, op_c, pv_c)
         return Details(Assessment(Verdict.UNDETERMINED, f"too few clean half periods in {det_name} "
                                   f"to fit ({si.half_periods})", warnings=tuple(warnings),
                                   **base), op_c, pv_c)

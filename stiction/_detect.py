@@ -22,13 +22,13 @@ ratio: noise adds equally to both and would otherwise pull SI towards 0.5.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import math
 
 import numpy as np
 from scipy import ndimage
 
 from ._oscillation import detrend
+from ._segments import ragged
 from ._validate import FloatArray
 
 __all__ = ["NO_STICTION_SI", "STICTION_SI", "StictionIndex", "half_periods", "stiction_index"]
@@ -86,31 +86,37 @@ def half_periods(x: FloatArray, period: float) -> tuple[FloatArray, FloatArray]:
 
 
 def stiction_index(x: FloatArray, period: float) -> StictionIndex:
-    """He et al. (2007) stiction index of ``x`` oscillating with ``period`` samples."""
+    """He et al. (2007) stiction index of ``x`` oscillating with ``period`` samples.
+
+    All half periods are fitted at once: each is one row of a zero-padded matrix, and both
+    two-parameter fits (offset + amplitude of the sine, of the triangle) follow in closed
+    form from the row sums."""
     z, ys = half_periods(x, period)
     y = detrend(x)
     var_noise = noise_sd(x) ** 2
-    sse_s = sse_t = 0.0
-    count = n_used = 0
-    for z0, z1 in itertools.pairwise(z):
-        length = z1 - z0
-        if not 0.25 * period < length < 1.5 * period:
-            continue  # not a half period of the main oscillation
-        i0, i1 = int(np.floor(z0)) + 1, int(np.ceil(z1))
-        if i1 - i0 < 4:
-            continue
-        seg = y[i0:i1]
-        u = (np.arange(i0, i1) - z0) / length
-        sine = np.sin(np.pi * u)
-        k = int(np.argmax(np.sign(seg.mean()) * ys[i0:i1]))  # the half period's extremum
-        up = float(np.clip(u[k], 0.05, 0.95))
-        tri = np.where(u <= up, u / up, (1.0 - u) / (1.0 - up))
-        sse_s += _sse(seg, sine)
-        sse_t += _sse(seg, tri)
-        n_used += seg.size
-        count += 1
+    z0, z1 = z[:-1], z[1:]
+    length = z1 - z0
+    i0 = np.floor(z0).astype(np.intp) + 1
+    i1 = np.ceil(z1).astype(np.intp)
+    # only half periods of the main oscillation, with enough samples to have a shape
+    keep = (0.25 * period < length) & (length < 1.5 * period) & (i1 - i0 >= 4)
+    count = int(np.count_nonzero(keep))
     if count < 2:
         return StictionIndex(None, count, 0.0, 0.0)
+    z0, length, i0, i1 = z0[keep], length[keep], i0[keep], i1[keep]
+    idx, mask = ragged(i0, i1 - i0)
+    n_k = (i1 - i0).astype(np.float64)
+    seg = np.where(mask, y[idx], 0.0)
+    u = (idx - z0[:, None]) / length[:, None]
+    sine = np.sin(np.pi * u)
+    # the triangle's apex: the half period's extremum of the smoothed signal
+    sgn = np.sign(seg.sum(axis=1))
+    k = np.argmax(np.where(mask, sgn[:, None] * ys[idx], -np.inf), axis=1)[:, None]
+    up = np.clip(np.take_along_axis(u, k, axis=1), 0.05, 0.95)
+    tri = np.where(u <= up, u / up, (1.0 - u) / (1.0 - up))
+    sse_s = float(np.sum(_sse_rows(seg, sine, mask, n_k)))
+    sse_t = float(np.sum(_sse_rows(seg, tri, mask, n_k)))
+    n_used = float(n_k.sum())
     mse_s = max(sse_s / n_used - var_noise, 0.0)
     mse_t = max(sse_t / n_used - var_noise, 0.0)
     total = mse_s + mse_t
@@ -118,11 +124,14 @@ def stiction_index(x: FloatArray, period: float) -> StictionIndex:
     return StictionIndex(si, count, mse_s, mse_t)
 
 
-def _sse(y: FloatArray, basis: FloatArray) -> float:
-    """Residual sum of squares of y ~ c + a * basis (least squares)."""
-    bc = basis - basis.mean()
-    yc = y - y.mean()
-    den = float(bc @ bc)
-    a = float(bc @ yc) / den if den > 0 else 0.0
-    r = yc - a * bc
-    return float(r @ r)
+def _sse_rows(y: FloatArray, basis: FloatArray, mask: np.ndarray, n: FloatArray) -> FloatArray:
+    """Per row, the residual sum of squares of y ~ c + a * basis over the masked entries
+    (rows centred first, so the closed form does not cancel)."""
+    b = np.where(mask, basis, 0.0)
+    bc = np.where(mask, b - (b.sum(axis=1) / n)[:, None], 0.0)
+    yc = np.where(mask, y - (y.sum(axis=1) / n)[:, None], 0.0)
+    den = np.einsum("ij,ij->i", bc, bc)
+    num = np.einsum("ij,ij->i", bc, yc)
+    a = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    r = yc - a[:, None] * bc
+    return np.asarray(np.einsum("ij,ij->i", r, r))

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 from scipy import fft
 
-from ._validate import FloatArray
+from ._validate import FloatArray, dot
 
 __all__ = ["Oscillation", "acf", "detect_oscillation"]
 
@@ -37,7 +37,7 @@ def detrend(x: FloatArray) -> FloatArray:
     """``x`` minus its least-squares straight line."""
     n = x.size
     t = np.arange(n) - (n - 1) / 2.0
-    slope = float(t @ (x - x.mean())) / float(t @ t)
+    slope = dot(t, x - x.mean()) / dot(t, t)
     return np.asarray(x - x.mean() - slope * t)
 
 

@@ -28,9 +28,11 @@ subtracted from fs and K r/2 from J (r from a straight line through the last six
 before each jump); fd = fs - J/K is unaffected.
 
 Multi-jump check (Figure 7): a half cycle in which the valve jumps twice does not follow a
-single exponential (or ramp); we flag half cycles whose fit residual RMS exceeds both three
-times the PV noise SD and 5 % of the PV swing, and any two consecutive jumps in the same
-direction (a missed switch). More than a quarter of flagged half cycles sets ``multi_jump``.
+single exponential (or ramp). We flag a half cycle when splitting it in two curves (same
+tau) is significant (F > 25) and the step at the split goes the same way as the half cycle's
+jump and is at least a quarter of a typical jump; or when its fit residual RMS exceeds both
+three times the PV noise SD and 5 % of the PV swing; or when two consecutive jumps go the
+same way (a missed switch). More than a quarter of flagged half cycles sets ``multi_jump``.
 """
 
 from __future__ import annotations
@@ -38,9 +40,9 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy import stats
 
 from ._detect import noise_sd
+from ._segments import closed_rss, ragged
 from ._switching import Switches, find_switches
 from ._validate import FloatArray
 
@@ -50,6 +52,8 @@ TRIM = 0.1
 RESID_NOISE_FACTOR = 3.0
 RESID_SWING_FRACTION = 0.05
 MULTI_JUMP_FRACTION = 0.25
+F_SPLIT = 25.0
+SECOND_STEP_FRACTION = 0.25
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +72,11 @@ class Quantification:
 
 
 def _mean(x: FloatArray) -> float:
-    return float(stats.trim_mean(x, TRIM)) if x.size >= 5 else float(np.mean(x))
+    """10 %-trimmed mean (as ``scipy.stats.trim_mean``: ``int(TRIM n)`` cut from each end)."""
+    if x.size < 5:
+        return float(np.mean(x))
+    cut = int(TRIM * x.size)
+    return float(np.mean(np.sort(x)[cut : x.size - cut]))
 
 
 def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
@@ -80,6 +88,49 @@ def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
     t = np.arange(-5, 1) + 2.5
     slope = (seg - seg.mean(axis=1, keepdims=True)) @ t / float(t @ t)
     return 0.5 * float(np.mean(np.abs(slope)))
+
+
+def _second_steps(
+    y: FloatArray, i: np.ndarray, j: np.ndarray, tau: float | None, *, margin: int
+) -> FloatArray:
+    """Is there a second valve jump inside each half cycle ``y[i[k]:j[k]]``?
+
+    Compares the one-curve fit with the best two-curve fit (same tau, split anywhere at
+    least ``margin`` samples from the ends): when the split is significant (F > F_SPLIT)
+    the result is the change of the steady state (self-regulating) or slope (integrating)
+    at the split, else NaN. Sums over the left pieces are prefix sums and over the right
+    pieces suffix sums, so neither suffers cancellation; the basis is referenced to the
+    middle of each half cycle (a scale factor, which the 2-parameter fit does not see).
+    All half cycles at once, as rows of a zero-padded matrix.
+    """
+    out = np.full(i.size, np.nan)
+    n = j - i
+    ks = np.flatnonzero(n >= 2 * margin + 8)
+    if ks.size == 0:
+        return out
+    i, n = i[ks], n[ks]
+    idx, mask = ragged(i, n)
+    t = (idx - i[:, None]) - n[:, None] / 2.0
+    g = t if tau is None else np.exp(np.clip(-t / tau, -300.0, 300.0))
+    yy = np.where(mask, y[idx], 0.0)
+    yy = np.where(mask, yy - (yy.sum(axis=1) / n)[:, None], 0.0)
+    cols = np.stack((np.ones_like(yy), g, g * g, yy, yy * g, yy * yy)) * mask
+    pre = np.cumsum(cols, axis=2)  # sums over [0, c]
+    suf = np.cumsum(cols[..., ::-1], axis=2)[..., ::-1]  # sums over [c, n)
+    c, mc = ragged(np.full(n.size, margin), n - 2 * margin)
+    r_left, a_left, b_left = closed_rss(np.take_along_axis(pre, (c - 1)[None], axis=2))
+    r_right, a_right, b_right = closed_rss(np.take_along_axis(suf, c[None], axis=2))
+    r_one, _, _ = closed_rss(np.take_along_axis(pre, (n - 1)[None, :, None], axis=2)[..., 0])
+    two = np.where(mc, r_left + r_right, np.inf)
+    k = np.argmin(two, axis=1)[:, None]
+    rss2 = np.take_along_axis(two, k, axis=1)[:, 0]
+    f = (r_one - rss2) / 2.0 / np.maximum(rss2 / (n - 4), 1e-300)
+    if tau is None:
+        step = np.take_along_axis(b_right - b_left, k, axis=1)[:, 0]
+    else:
+        step = np.take_along_axis(a_right - a_left, k, axis=1)[:, 0]
+    out[ks] = np.where(f >= F_SPLIT, step, np.nan)
+    return out
 
 
 def quantify(
@@ -116,6 +167,13 @@ def quantify(
     swing_pv = float(np.percentile(pv, 95) - np.percentile(pv, 5))
     rms = np.sqrt(sw.rss / np.maximum(sw.count, 1.0))
     bad_fit = rms > np.maximum(RESID_NOISE_FACTOR * sigma, RESID_SWING_FRACTION * swing_pv)
+    if dj.size:
+        typical = float(np.median(np.abs(dj)))
+        c = np.floor(sw.onsets).astype(np.intp) + 1
+        step = _second_steps(pv, c[:-1], c[1:], sw.tau, margin=max(5, int(0.02 * period)))
+        main = np.concatenate(([-dj[0]], dj))[: sw.a.size]
+        bad_fit |= (np.sign(step) == np.sign(main)) & (np.abs(step) >= SECOND_STEP_FRACTION
+                                                      * typical)
     same_dir = np.zeros(sw.a.size, dtype=bool)
     if dj.size >= 2:
         same = np.sign(dj[1:]) == np.sign(dj[:-1])

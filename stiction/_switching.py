@@ -28,7 +28,7 @@ import math
 import numpy as np
 from scipy import optimize, signal
 
-from ._segments import exp_basis, prefix, rss
+from ._segments import closed_rss, exp_basis, ragged, sums2
 from ._smooth import smooth
 from ._validate import FloatArray
 
@@ -108,21 +108,14 @@ def _segment_sums(
     y: FloatArray, bounds: np.ndarray, refs: FloatArray, tau: float | None
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Fit a + b g on each [bounds[k,0], bounds[k,1]); returns a, b, rss, count."""
-    n_seg = bounds.shape[0]
-    a = np.empty(n_seg)
-    b = np.empty(n_seg)
-    r = np.empty(n_seg)
-    cnt = np.empty(n_seg)
-    for k in range(n_seg):
-        i, j = int(bounds[k, 0]), int(bounds[k, 1])
-        t = np.arange(i, j, dtype=np.float64)
-        x = exp_basis(t, float(refs[k]), tau)
-        coef, *_ = np.linalg.lstsq(x, y[i:j], rcond=None)
-        res = y[i:j] - x @ coef
-        a[k], b[k] = coef
-        r[k] = float(res @ res)
-        cnt[k] = j - i
-    return a, b, r, cnt
+    idx = np.concatenate([np.arange(i, j) for i, j in bounds])
+    seg = np.repeat(np.arange(bounds.shape[0]), bounds[:, 1] - bounds[:, 0])
+    starts = np.concatenate(([0], np.cumsum(bounds[:, 1] - bounds[:, 0])[:-1]))
+    t_rel = idx - refs[seg]
+    g = t_rel if tau is None else np.exp(-np.clip(t_rel / tau, -50.0, 700.0))
+    sums = np.add.reduceat(sums2(g, y[idx]), starts, axis=1)
+    r, a, b = closed_rss(sums)
+    return a, b, r, sums[0]
 
 
 def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float) -> float:
@@ -160,48 +153,83 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
     return math.exp(float(res.x))
 
 
+def _basis(t: FloatArray, t0: FloatArray, tau: float | None) -> FloatArray:
+    """The varying column of :func:`exp_basis` for a matrix of times, one reference per row."""
+    d = t - t0[:, None]
+    return d if tau is None else np.exp(-np.clip(d / tau, -50.0, 700.0))
+
+
 def _refine(
     y: FloatArray, onsets: FloatArray, tau: float | None, reach: int, guard: int
 ) -> FloatArray:
-    """Re-search each onset within +-reach with the model curves; fractional result."""
+    """Re-search each onset within +-reach with the model curves; fractional result.
+
+    All onsets at once: each onset's search interval (from the previous onset to the next,
+    less ``guard``) is one row of a zero-padded matrix, so the candidate fits of every
+    onset come from one cumulative sum (padding adds zeros to every sum)."""
     n = y.size
     out = onsets.astype(np.float64).copy()
-    c_int = np.round(onsets).astype(np.intp)
-    for k, c in enumerate(c_int.tolist()):
-        lo = int(c_int[k - 1]) + guard if k > 0 else max(0, c - 3 * reach)
-        hi = int(c_int[k + 1]) - guard if k + 1 < c_int.size else min(n, c + 3 * reach)
-        c_lo, c_hi = max(lo + 3, c - reach), min(hi - 3, c + reach)
-        if c_hi <= c_lo:
-            continue
-        # separate prefix sums left and right of the candidates: an exponential basis
-        # evaluated before its reference time grows huge and would swamp the sums
-        ref_l = float(onsets[k - 1]) if k > 0 else float(lo)
-        t_l = np.arange(lo, c_hi, dtype=np.float64)
-        t_r = np.arange(c_lo, hi, dtype=np.float64)
-        pre_l = prefix(exp_basis(t_l, ref_l, tau), y[lo:c_hi])
-        pre_r = prefix(exp_basis(t_r, float(c_lo), tau), y[c_lo:hi])
-        cands = np.arange(c_lo, c_hi)
-        r_l, coef_l = rss(pre_l, np.zeros_like(cands), cands - lo)
-        r_r, coef_r = rss(pre_r, cands - c_lo, np.full_like(cands, hi - c_lo))
-        best = int(np.argmin(r_l + r_r))
-        cb = int(cands[best])
-        out[k] = _meet(coef_l[best], ref_l, coef_r[best], float(c_lo), tau=tau, near=float(cb))
+    c = np.round(onsets).astype(np.intp)
+    if c.size == 0:
+        return out
+    lo = np.empty_like(c)
+    hi = np.empty_like(c)
+    lo[1:] = c[:-1] + guard
+    lo[0] = max(0, int(c[0]) - 3 * reach)
+    hi[:-1] = c[1:] - guard
+    hi[-1] = min(n, int(c[-1]) + 3 * reach)
+    c_lo = np.maximum(lo + 3, c - reach)
+    c_hi = np.minimum(hi - 3, c + reach)
+    ks = np.flatnonzero(c_hi > c_lo)
+    if ks.size == 0:
+        return out
+    lo, hi, c_lo, c_hi = lo[ks], hi[ks], c_lo[ks], c_hi[ks]
+    # left sums are prefix sums from ``lo``, right sums suffix sums to ``hi``: an
+    # exponential basis evaluated before its reference time grows huge, and sums of
+    # differences of such would swamp the fit
+    ref_l = np.where(ks > 0, onsets[np.maximum(ks - 1, 0)], lo.astype(np.float64))
+    ref_r = c_lo.astype(np.float64)
+    il, ml = ragged(lo, c_hi - lo)
+    ir, mr = ragged(c_lo, hi - c_lo)
+    s_l = np.cumsum(sums2(_basis(il.astype(np.float64), ref_l, tau), y[il]) * ml, axis=2)
+    s_r = np.cumsum((sums2(_basis(ir.astype(np.float64), ref_r, tau), y[ir]) * mr)[..., ::-1],
+                    axis=2)[..., ::-1]
+    cand, mc = ragged(c_lo, c_hi - c_lo)
+    pos_l = np.where(mc, cand - lo[:, None] - 1, 0)
+    pos_r = np.where(mc, cand - c_lo[:, None], 0)
+    r_l, a_l, b_l = closed_rss(np.take_along_axis(s_l, pos_l[None], axis=2))
+    r_r, a_r, b_r = closed_rss(np.take_along_axis(s_r, pos_r[None], axis=2))
+    best = np.argmin(np.where(mc, r_l + r_r, np.inf), axis=1)[:, None]
+
+    def pick(v: FloatArray) -> FloatArray:
+        return np.take_along_axis(v, best, axis=1)[:, 0]
+
+    near = np.take_along_axis(cand, best, axis=1)[:, 0].astype(np.float64)
+    out[ks] = _meet((pick(a_l), pick(b_l), ref_l), (pick(a_r), pick(b_r), ref_r), tau=tau,
+                    near=near)
     return out
 
 
-def _meet(cl: FloatArray, ref_l: float, cr: FloatArray, ref_r: float, *, tau: float | None,
-          near: float) -> float:
-    """Where the left and right fitted curves cross, within two samples of ``near``."""
-    grid = near + np.linspace(-2.0, 1.0, 301)
-    fl = exp_basis(grid, ref_l, tau) @ cl
-    fr = exp_basis(grid, ref_r, tau) @ cr
-    d = fl - fr
-    sc = np.flatnonzero(np.signbit(d[1:]) != np.signbit(d[:-1]))
-    if sc.size == 0:
-        return near
-    i = int(sc[np.argmin(np.abs(grid[sc] - near))])
-    a, b = d[i], d[i + 1]
-    return float(grid[i] + (grid[i + 1] - grid[i]) * (a / (a - b) if a != b else 0.5))
+def _meet(left: tuple[FloatArray, FloatArray, FloatArray],
+          right: tuple[FloatArray, FloatArray, FloatArray], *, tau: float | None,
+          near: FloatArray) -> FloatArray:
+    """Where each pair of left and right fitted curves crosses, within two samples of
+    ``near`` (the crossing nearest to it; ``near`` itself when they do not cross). Each
+    side is ``(a, b, ref)`` of the curve ``a + b g(t - ref)``."""
+    a_l, b_l, ref_l = left
+    a_r, b_r, ref_r = right
+    grid = near[:, None] + np.linspace(-2.0, 1.0, 31)[None, :]
+    d = (a_l[:, None] + b_l[:, None] * _basis(grid, ref_l, tau)) - (
+        a_r[:, None] + b_r[:, None] * _basis(grid, ref_r, tau))
+    sc = np.signbit(d[:, 1:]) != np.signbit(d[:, :-1])
+    dist = np.where(sc, np.abs(grid[:, :-1] - near[:, None]), np.inf)
+    i = np.argmin(dist, axis=1)[:, None]
+    a = np.take_along_axis(d, i, axis=1)[:, 0]
+    b = np.take_along_axis(d, i + 1, axis=1)[:, 0]
+    g0 = np.take_along_axis(grid, i, axis=1)[:, 0]
+    g1 = np.take_along_axis(grid, i + 1, axis=1)[:, 0]
+    frac = np.where(a != b, a / np.where(a != b, a - b, 1.0), 0.5)
+    return np.where(sc.any(axis=1), g0 + (g1 - g0) * frac, near)
 
 
 def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switches | None:

@@ -13,6 +13,13 @@ from ._errors import ParameterError
 FloatArray = NDArray[np.float64]
 
 
+def dot(a: NDArray[np.floating[Any]], b: NDArray[np.floating[Any]]) -> float:
+    """Inner product of two 1-D arrays without BLAS: a BLAS dot goes multi-threaded on long
+    vectors, and on a busy (edge) CPU the thread hand-off costs more than the arithmetic
+    (it made analyze() grow superlinearly with the window length)."""
+    return float(np.einsum("i,i->", a, b))
+
+
 def as_float_array(name: str, value: ArrayLike) -> FloatArray:
     """``value`` as a float64 array (0-d for scalars); non-numeric input names ``name``."""
     try:
