@@ -99,6 +99,7 @@ class Gateway:
                  analyze: str = DEFAULT_ANALYZE, serve_http: bool = True,
                  batch_size: int = 64, persist: bool = False) -> None:
         self.registry = registry if registry is not None else CollectorRegistry()
+        self._phase_ref: float | None = None
         self.metrics = GatewayMetrics(self.registry)
         self.runtime = self._build(config, None)
         self.metrics.set_store(self.runtime.store)
@@ -153,6 +154,16 @@ class Gateway:
     def loop_config(self, name: str) -> LoopConfig:
         return self.config.loops[self.store.index[name]]
 
+    def align_polls(self, phase_ref: float) -> None:
+        """Poll on the grid ``phase_ref + n * period`` (loop.time() seconds) instead of
+        from start-up. The demo and tests set it half a step after the simulated PLC's
+        steps, so that at high ``time_scale`` every simulated sample is read exactly once
+        (timer jitter of a millisecond is a large part of a 25 ms step). Devices added by
+        a reload follow the same grid."""
+        self._phase_ref = phase_ref
+        for p in self.pollers:
+            p.phase_ref = phase_ref
+
     # ------------------------------------------------------------------ building
 
     def _build(self, config: Config, old: _Runtime | None) -> _Runtime:
@@ -205,6 +216,7 @@ class Gateway:
                                   clock=clock, n_points=len(points), points=points,
                                   backoff=Backoff(min(BACKOFF_BASE_S, g.reconnect_max_s),
                                                   2.0, g.reconnect_max_s))
+            poller.phase_ref = self._phase_ref
             if old_poller is not None:
                 poller.take_over(old_poller)
             pollers.append(poller)
@@ -288,9 +300,10 @@ class Gateway:
             _done, pending = await asyncio.wait(tasks, timeout=limit)
             for t in pending:
                 t.cancel()
+            if pending:  # a cancelled pymodbus request may never return: do not wait on it
+                _done, pending = await asyncio.wait(pending, timeout=1.0)
             for t in pending:
-                with contextlib.suppress(asyncio.CancelledError, Exception):
-                    await t
+                log.error("task %s did not stop; abandoned", t.get_name())
         return {p.device.name: p.next_due for p in rt.pollers}
 
     async def _watch_first_ticks(self) -> None:
@@ -308,9 +321,10 @@ class Gateway:
     async def _close(self) -> None:
         for t in self._tasks:
             t.cancel()
-        for t in self._tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
+        if self._tasks:
+            _done, pending = await asyncio.wait(self._tasks, timeout=2.0)
+            for t in pending:
+                log.error("task %s did not stop; abandoned", t.get_name())
         self._tasks.clear()
         await self._stop_pollers(self.runtime)
         if self.persist:

@@ -37,6 +37,7 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
+import math
 import time
 
 import numpy as np
@@ -124,6 +125,7 @@ class DevicePoller:
         self._connects = 0
         self._stop = asyncio.Event()
         self.first_tick = asyncio.Event()  # set when the first tick has completed
+        self.phase_ref: float | None = None  # loop.time() instant on the tick grid, if set
         self._last_fresh = np.full(len(store.loops), -1, dtype=np.int64)
 
     # ------------------------------------------------------------------ lifecycle
@@ -136,8 +138,13 @@ class DevicePoller:
         self.failing_blocks = set(old.failing_blocks)
 
     def request_stop(self) -> None:
-        """Make :meth:`run` return after the current tick (or at once while it sleeps)."""
+        """Make :meth:`run` return after the current tick (or at once while it sleeps).
+
+        Shutdown and reload ask rather than cancel: cancelling a task inside a pymodbus
+        request can leave it waiting forever (seen with pymodbus 3.16 on Python 3.11)."""
         self._stop.set()
+
+    stop = request_stop
 
     def resume(self) -> None:
         """Undo :meth:`request_stop` so :meth:`run` can be started again."""
@@ -154,7 +161,11 @@ class DevicePoller:
         the first tick (default now), so a reload continues its predecessor's schedule.
         The adapter is not closed here: its owner closes it (it may outlive a reload)."""
         loop = asyncio.get_running_loop()
-        due = loop.time() if due is None else due
+        if due is None:
+            due = loop.time()
+            if self.phase_ref is not None:  # first tick on the grid phase_ref + n * period
+                due = self.phase_ref + math.ceil((due - self.phase_ref) / self.period) \
+                    * self.period
         self.last_progress = loop.time()
         while not self._stop.is_set():
             self.next_due = due
