@@ -85,7 +85,10 @@ def analyze_batch(path: str, jobs: Sequence[LoopJob]
         t0 = time.perf_counter()
         fill = float(np.count_nonzero(job.quality == Quality.GOOD)) / job.size
         op, pv = analysis_segment(job.op, job.pv, job.quality)
-        if len(op) < 2:
+        reason = bad_values_reason(job.quality, len(op))
+        if reason is not None:
+            a = Assessment(Verdict.BAD_DATA, reason)
+        elif len(op) < 2:
             a = Assessment(Verdict.BAD_DATA, "no usable samples in the window yet")
         else:
             try:
@@ -95,6 +98,28 @@ def analyze_batch(path: str, jobs: Sequence[LoopJob]
                 a = Assessment(Verdict.BAD_DATA, f"analysis failed: {type(exc).__name__}: {exc}")
         out.append((job.index, a, fill, len(op), time.perf_counter() - t0))
     return out
+
+
+BAD_TAIL = 3  # trailing BAD samples beyond which the current data is called unusable
+MIN_SEGMENT = 32  # stiction.analyze's minimum window
+
+
+def bad_values_reason(quality: NDArray[np.uint8], usable: int) -> str | None:
+    """Why a window is bad_data because the device delivered implausible values (quality
+    BAD: NaN, inf, subnormal, outside the configured range), or None. Communication gaps
+    are not reported here: they make the loop stale."""
+    bad = quality == Quality.BAD
+    n_bad = int(np.count_nonzero(bad))
+    if n_bad == 0:
+        return None
+    what = "NaN, inf, subnormal (word-swapped?) or outside the configured range"
+    tail = len(quality) - int(np.flatnonzero(~bad)[-1]) - 1 if not bad.all() else len(quality)
+    if tail > BAD_TAIL:
+        return f"the latest {tail} samples are bad values ({what})"
+    if usable < MIN_SEGMENT:
+        return (f"only {usable} usable samples since the last run of bad values "
+                f"({n_bad} bad samples in the window: {what})")
+    return None
 
 
 def _warm(path: str) -> int:
@@ -142,8 +167,8 @@ class AnalysisScheduler:
             await self.run_round()
             due = max(due + self.interval_wall_s, loop.time())
 
-    def _jobs(self) -> Iterator[list[LoopJob]]:
-        for ref in self.banks:
+    def _jobs(self, banks: Sequence[BankRef]) -> Iterator[list[LoopJob]]:
+        for ref in banks:
             if ref.bank.count == 0:
                 continue
             for lo in range(0, len(ref.loops), self.batch_size):
@@ -163,6 +188,7 @@ class AnalysisScheduler:
             raise RuntimeError("AnalysisScheduler.start() was not awaited")
         loop = asyncio.get_running_loop()
         t0 = time.perf_counter()
+        store = self.store  # a reload swaps the store: results go where their jobs came from
         sem = asyncio.Semaphore(2 * self.workers)
         done = 0
 
@@ -176,7 +202,7 @@ class AnalysisScheduler:
                 sem.release()
             now = time.time()
             for index, assessment, fill, samples, dur in results:
-                self.store.set_result(index, assessment, t=now, window_fill=fill,
+                store.set_result(index, assessment, t=now, window_fill=fill,
                                       samples=samples)
                 if self.on_duration is not None:
                     self.on_duration(dur)
@@ -185,7 +211,7 @@ class AnalysisScheduler:
         # windows are copied batch by batch, only when a slot is free, so at most
         # 2 x workers batches of windows exist at once
         tasks = []
-        for batch in self._jobs():
+        for batch in self._jobs(list(self.banks)):
             await sem.acquire()
             tasks.append(asyncio.create_task(one(batch)))
         await asyncio.gather(*tasks)

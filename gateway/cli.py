@@ -57,7 +57,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     logging.basicConfig(level=args.log_level,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    logging.getLogger("pymodbus").setLevel(logging.ERROR)
+    # the adapters report every pymodbus failure as a DeviceError, logged once per outage by
+    # the poller; pymodbus' own per-attempt lines would repeat it every retry
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     try:
         return _dispatch(args)
     except ConfigError as exc:
@@ -75,7 +77,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         print(f"{args.file}: ok ({len(cfg.devices)} device(s), {len(cfg.loops)} loop(s))")
         return 0
     if args.command == "run":
-        return run(load_config(args.config))
+        return run(load_config(args.config), args.config)
     if args.command == "plc-sim":
         sim_cfg = plc_sim.load_sim_config(args.config)
         if args.write_gateway_config:

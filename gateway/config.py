@@ -51,6 +51,8 @@ class GatewaySettings:
     time_scale: float = 1.0  # process seconds per wall second (>1 only for simulation)
     state_file: str = "state/gateway.state"
     analysis_workers: int = 0  # worker processes; 0 = one per core less one (at least 1)
+    persist_interval_s: float = 300.0  # wall seconds between state-file writes (and at exit)
+    reconnect_max_s: float = 30.0  # wall seconds, cap of the jittered reconnect backoff
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,6 +87,7 @@ class PointConfig:
     address: Any
     scale: float = 1.0
     offset: float = 0.0
+    range: tuple[float, float] | None = None  # plausible engineering values; outside -> BAD
 
 
 @dataclasses.dataclass(frozen=True)
@@ -229,6 +232,9 @@ def _parse_gateway(sec: Section) -> GatewaySettings:
         time_scale=sec.opt("time_scale", s.number(positive=True), d.time_scale),
         state_file=sec.opt("state_file", s.string, d.state_file),
         analysis_workers=sec.opt("analysis_workers", s.integer(0, 256), d.analysis_workers),
+        persist_interval_s=sec.opt("persist_interval_s", s.number(positive=True),
+                                   d.persist_interval_s),
+        reconnect_max_s=sec.opt("reconnect_max_s", s.number(positive=True), d.reconnect_max_s),
     )
     sec.done()
     return out
@@ -257,6 +263,7 @@ def _parse_point(sec: Section, device: DeviceConfig | None,
     are still checked against ``protocol`` if known, so every problem is reported."""
     scale = sec.opt("scale", s.number(), 1.0)
     offset = sec.opt("offset", s.number(), 0.0)
+    valid = sec.opt("range", s.number_pair, None)
     if scale == 0.0:
         sec.error("scale", "must not be 0")
         scale = MISSING
@@ -268,9 +275,9 @@ def _parse_point(sec: Section, device: DeviceConfig | None,
         for key in sec.raw:
             sec.raw_value(key)
     sec.done()
-    if MISSING in (scale, offset, address):
+    if MISSING in (scale, offset, address, valid):
         return None
-    return PointConfig(address, scale, offset)
+    return PointConfig(address, scale, offset, valid)
 
 
 def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],

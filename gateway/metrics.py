@@ -8,6 +8,7 @@ ordinary client objects registered in the same, explicitly passed, registry.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 from collections.abc import Iterator
@@ -90,8 +91,10 @@ class GatewayMetrics:
 
     def __init__(self, registry: CollectorRegistry, store: ResultStore | None = None) -> None:
         self.registry = registry
+        self.collector: StoreCollector | None = None
         if store is not None:
-            registry.register(StoreCollector(store))
+            self.collector = StoreCollector(store)
+            registry.register(self.collector)
         self.device_up = Gauge(f"{PREFIX}_device_up", "1 while the device answers polls.",
                                ["device"], registry=registry)
         self.poll_duration = Histogram(
@@ -116,6 +119,24 @@ class GatewayMetrics:
         self.poll_duration.labels(device=name)
         for kind in ("connect", "timeout", "exception", "auth", "protocol"):
             self.poll_errors.labels(device=name, kind=kind)
+
+
+    def set_store(self, store: ResultStore) -> None:
+        """Serve the per-loop series from ``store`` from now on (after a reload)."""
+        if self.collector is None:
+            self.collector = StoreCollector(store)
+            self.registry.register(self.collector)
+        else:
+            self.collector.store = store
+
+    def remove_device(self, name: str) -> None:
+        """Drop a device's series (it left the config on reload)."""
+        for metric in (self.device_up, self.poll_requests, self.poll_duration):
+            with contextlib.suppress(KeyError):
+                metric.remove(name)
+        for kind in ("connect", "timeout", "exception", "auth", "protocol"):
+            with contextlib.suppress(KeyError):
+                self.poll_errors.remove(name, kind)
 
 
 def serve_metrics(registry: CollectorRegistry, host: str, port: int

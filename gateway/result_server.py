@@ -45,12 +45,13 @@ class RegisterServer:
     refused with exception 1 (illegal function) and counted in ``refused_writes``."""
 
     def __init__(self, images: dict[str, NDArray[np.uint16]], *, host: str, port: int,
-                 unit_id: int = 1) -> None:
+                 unit_id: int = 1, capacity: int | None = None) -> None:
         self.images = images
         self.requests = 0  # read requests answered from the image
         self.refused_writes = 0
         self.host, self.port = host, port
-        size = max(len(img) for img in images.values())
+        # the address range pymodbus accepts; images may be swapped for larger ones up to it
+        size = capacity or max(len(img) for img in images.values())
         devices = [self._device(unit_id, size, self._action)]
         if unit_id != 0:
             devices.append(self._device(0, size, self._wrong_unit))
@@ -118,16 +119,31 @@ class ResultServer:
     def __init__(self, settings: ResultServerSettings, loops: Sequence[LoopConfig],
                  store: ResultStore) -> None:
         self.settings = settings
+        self.image = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
+        host, port = settings.listen
+        self.server = RegisterServer({"holding": self.image, "input": self.image},
+                                     host=host, port=port, unit_id=settings.unit_id,
+                                     capacity=65536)  # a reload may move blocks anywhere
+        self.rebind(loops, store)
+
+    def rebind(self, loops: Sequence[LoopConfig], store: ResultStore) -> None:
+        """Serve ``loops`` from ``store`` from now on (start-up and reload): a fresh image,
+        so the blocks of removed loops vanish (reads there get exception 2 or zeros)."""
         self.store = store
         self.addresses = np.array([lp.result_address for lp in loops], dtype=np.intp)
         size = int(self.addresses.max()) + RESULT_BLOCK_SIZE if len(loops) else RESULT_BLOCK_SIZE
-        self.image = np.zeros(size, dtype=np.uint16)
-        host, port = settings.listen
-        self.server = RegisterServer({"holding": self.image, "input": self.image},
-                                     host=host, port=port, unit_id=settings.unit_id)
+        image = np.zeros(size, dtype=np.uint16)
+        self.image = image
         for i in range(len(loops)):
             self.refresh(i)
-        store.subscribe(self.refresh)
+        self.server.images["holding"] = image
+        self.server.images["input"] = image
+
+        def on_change(i: int) -> None:
+            if self.store is store:  # an old store (before a reload) no longer counts
+                self.refresh(i)
+
+        store.subscribe(on_change)
 
     @property
     def port(self) -> int:

@@ -72,6 +72,12 @@ class ResultStore:
         self._notify(i)
         return res
 
+    def restore_result(self, i: int, result: LoopResult) -> None:
+        """Put back a result as it was (sequence number included), e.g. from the state file
+        or the previous config on reload."""
+        self.results[i] = result
+        self._notify(i)
+
     def set_stale(self, rows: NDArray[np.intp], stale: NDArray[np.bool_] | bool) -> None:
         """Set the stale flag of loops ``rows``; subscribers hear of those that changed."""
         new = np.broadcast_to(np.asarray(stale, dtype=bool), rows.shape)

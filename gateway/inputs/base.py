@@ -42,6 +42,8 @@ class PointSpec:
     address: Any
     scale: float = 1.0
     offset: float = 0.0
+    range: tuple[float, float] | None = None  # plausible engineering values (checked by
+    # the poller, for every protocol): outside it the sample is BAD
 
 
 @dataclasses.dataclass(frozen=True)

@@ -180,7 +180,8 @@ def decode_registers(regs: NDArray[np.uint16], typ: str, word_order: str = "big"
     if word_order == "little":
         regs = regs[:, ::-1]
     raw = regs.astype(">u2" if byte_order == "big" else "<u2")  # bytes in MSB-first order
-    return np.ascontiguousarray(raw).view(dtype).reshape(-1).astype(np.float64)
+    with np.errstate(invalid="ignore"):  # a signalling NaN from the PLC is just a bad value
+        return np.ascontiguousarray(raw).view(dtype).reshape(-1).astype(np.float64)
 
 
 def encode_values(values: Any, typ: str, word_order: str = "big",
