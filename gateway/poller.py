@@ -175,6 +175,15 @@ class DevicePoller:
                     await asyncio.wait_for(self._stop.wait(), delay)
                 if self._stop.is_set():
                     break
+            # ticks whose time has passed while the previous one overran are recorded as
+            # gap rows before this tick's sample, so rows stay in time order
+            behind = loop.time() - due
+            if behind >= self.period:
+                skip = int(behind // self.period)
+                self.missed_ticks += skip
+                due += skip * self.period
+                for _ in range(min(skip, self._max_rows())):
+                    self._gap(self.clock.now())
             self._note_start(loop.time())
             try:
                 await self.poll_once()
@@ -184,13 +193,6 @@ class DevicePoller:
             self.last_progress = loop.time()
             self.first_tick.set()
             due += self.period
-            behind = loop.time() - due
-            if behind > self.period:
-                skip = int(behind // self.period)
-                self.missed_ticks += skip
-                due += skip * self.period
-                for _ in range(min(skip, self._max_rows())):
-                    self._gap(self.clock.now())
         self.next_due = due
 
     def _max_rows(self) -> int:

@@ -41,8 +41,8 @@ def write_configs(pki: Pki, tmp: Path, *, password: str = PASSWORD) -> tuple[Pat
                   "password_file": "secrets/sim.pw",
                   "trusted_clients": str(pki.trusted_clients)},
         "loops": [{"name": "FIC101", "scenario": "table4-case2", "noise": 0.02,
-                   "window_s": 300},
-                  {"name": "TIC301", "scenario": "healthy", "noise": 0.02, "window_s": 300}],
+                   "window_s": 3000},
+                  {"name": "TIC301", "scenario": "healthy", "noise": 0.02, "window_s": 3000}],
     }
     sim_path = tmp / "plc-sim.yaml"
     sim_path.write_text(yaml.safe_dump(sim))
@@ -154,11 +154,20 @@ def test_opcua_server_restart_mid_run_is_a_gap_then_polling_resumes(pki: Pki,
                 return qs, len(gap)
 
     qs, n_gap = run(main(), timeout=80)
-    first_gap = qs.index(Quality.NO_COMM)
-    last_gap = len(qs) - 1 - qs[::-1].index(Quality.NO_COMM)
-    assert all(q == Quality.GOOD for q in qs[:first_gap])
-    assert all(q == Quality.NO_COMM for q in qs[first_gap:last_gap + 1])  # one gap
-    assert qs[last_gap + 1:]
-    assert all(q == Quality.GOOD for q in qs[last_gap + 1:])  # resumed, same gateway
-    print(f"OPC UA restart under the gateway: {n_gap} gap samples, "
-          f"{len(qs) - last_gap - 1} good samples after it")
+    runs: list[tuple[int, int]] = []  # (quality, length) run-length encoding of the window
+    for q in qs:
+        if runs and runs[-1][0] == q:
+            runs[-1] = (q, runs[-1][1] + 1)
+        else:
+            runs.append((q, 1))
+    assert {q for q, _ in runs} <= {Quality.GOOD, Quality.NO_COMM}
+    # the outage (1.5 s stopped + restart, at 50x: well over 50 ticks) is one long gap ...
+    outage = max(range(len(runs)), key=lambda i: runs[i][1] if runs[i][0] else -1)
+    assert runs[outage][0] == Quality.NO_COMM and runs[outage][1] >= 50
+    # ... with good samples before it and after it: the same gateway resumed polling
+    assert sum(n for q, n in runs[:outage] if q == Quality.GOOD) >= 40
+    assert runs[-1][0] == Quality.GOOD and runs[-1][1] >= 30
+    # the only other gaps are the few ticks a (re)connect takes (secure channel + session)
+    assert all(n <= 10 for i, (q, n) in enumerate(runs) if q and i != outage)
+    print(f"OPC UA restart under the gateway: {n_gap} gap samples, outage gap "
+          f"{runs[outage][1]}, {runs[-1][1]} good samples after it")
