@@ -1,9 +1,24 @@
-"""`stiction-gateway` command line (placeholder until the gateway lands)."""
+"""`stiction-gateway` command line: run, check-config, plc-sim, demo.
+
+Exit status: 0 ok, 1 runtime failure (e.g. a port in use), 2 bad usage or bad config (the
+problems are printed on stderr, one per line, each naming the file, section and key).
+"""
 
 from __future__ import annotations
 
 import argparse
+import asyncio
+import logging
 import sys
+from pathlib import Path
+
+from . import plc_sim
+from .app import install_stop_signals, run
+from .config import load_config
+from .demo import run_demo
+from .errors import ConfigError, GatewayError
+
+__all__ = ["build_parser", "main"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -11,8 +26,27 @@ def build_parser() -> argparse.ArgumentParser:
         prog="stiction-gateway",
         description="Edge gateway that finds and sizes sticky control valves.",
     )
-    parser.add_subparsers(dest="command")
+    parser.add_argument("--log-level", default="INFO",
+                        choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    sub = parser.add_subparsers(dest="command")
+    run = sub.add_parser("run", help="run the gateway (until SIGTERM/SIGINT)")
+    run.add_argument("--config", required=True, metavar="FILE", help="gateway YAML config")
+    check = sub.add_parser("check-config", help="validate a config file without connecting")
+    check.add_argument("file", metavar="FILE")
+    sim = sub.add_parser("plc-sim", help="simulated PLC serving OP/PV over Modbus TCP")
+    sim.add_argument("--config", required=True, metavar="FILE", help="plc-sim YAML config")
+    sim.add_argument("--write-gateway-config", metavar="FILE",
+                     help="write the matching gateway config to FILE and exit")
+    demo = sub.add_parser("demo", help="simulated PLC + gateway with a live verdict table")
+    demo.add_argument("--duration", type=float, default=None, metavar="S",
+                      help="stop after S wall seconds (default: run until Ctrl-C)")
     return parser
+
+
+def _problems(exc: ConfigError) -> int:
+    for line in exc.problems:
+        print(line, file=sys.stderr)
+    return 2
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -21,7 +55,49 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
-    return 0
+    logging.basicConfig(level=args.log_level,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.getLogger("pymodbus").setLevel(logging.ERROR)
+    try:
+        return _dispatch(args)
+    except ConfigError as exc:
+        return _problems(exc)
+    except (GatewayError, OSError) as exc:
+        print(f"stiction-gateway: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    if args.command == "check-config":
+        cfg = load_config(args.file)
+        print(f"{args.file}: ok ({len(cfg.devices)} device(s), {len(cfg.loops)} loop(s))")
+        return 0
+    if args.command == "run":
+        return run(load_config(args.config))
+    if args.command == "plc-sim":
+        sim_cfg = plc_sim.load_sim_config(args.config)
+        if args.write_gateway_config:
+            text = plc_sim.dump_yaml(plc_sim.gateway_config(sim_cfg))
+            Path(args.write_gateway_config).write_text(
+                "# Gateway config for the simulated PLC of " + args.config + "\n" + text,
+                encoding="utf-8")
+            print(f"wrote {args.write_gateway_config}")
+            return 0
+
+        async def serve_sim() -> None:
+            stop = asyncio.Event()
+            install_stop_signals(stop)
+            await plc_sim.serve(sim_cfg, stop)
+
+        asyncio.run(serve_sim())
+        return 0
+    if args.command == "demo":
+        logging.getLogger().setLevel(logging.WARNING)  # the table is the output
+        asyncio.run(run_demo(args.duration))
+        return 0
+    raise AssertionError(args.command)
 
 
 if __name__ == "__main__":

@@ -17,6 +17,8 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from ..errors import DeviceError
+
 __all__ = ["DeviceInput", "PointSpec", "Quality", "ReadResult"]
 
 
@@ -46,12 +48,14 @@ class PointSpec:
 class ReadResult:
     """One poll of one device: ``values`` float64 and ``quality`` uint8, one per point, and
     the wall-clock time (Unix seconds) the poll started. ``requests`` counts protocol
-    requests the poll sent."""
+    requests the poll sent. ``errors`` lists partial failures (e.g. a Modbus exception for
+    one block) whose points came back NaN/NO_COMM while the rest of the poll succeeded."""
 
     t: float
     values: NDArray[np.float64]
     quality: NDArray[np.uint8]
     requests: int
+    errors: tuple[DeviceError, ...] = ()
 
 
 class DeviceInput(Protocol):
