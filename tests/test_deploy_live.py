@@ -372,15 +372,16 @@ def test_mbpoll_reads_the_sticky_loop_and_agrees_with_metrics(stack: Stack) -> N
     print(f"mbpoll {regs}\nmetrics {before}")
     assert regs["verdict"] == VERDICT_CODES["stiction"] == before["verdict"]
     assert regs["t"] == math.floor(ts)
-    # float32 registers keep about 7 significant digits of the float64 metrics
-    assert regs["stiction_index"] == pytest.approx(before["stiction_index"], rel=1e-6)
-    assert regs["fd_percent"] == pytest.approx(100 * before["fd_ratio"], rel=1e-6)
-    assert regs["fs_percent"] == pytest.approx(100 * before["fs_ratio"], rel=1e-6)
-    assert regs["jump_percent"] == pytest.approx(100 * before["jump_ratio"], rel=1e-6)
+    # float32 registers keep about 7 significant digits of the float64 metrics, and mbpoll
+    # prints floats with 6 (%g): agree to within 1e-5 relative
+    assert regs["stiction_index"] == pytest.approx(before["stiction_index"], rel=1e-5)
+    assert regs["fd_percent"] == pytest.approx(100 * before["fd_ratio"], rel=1e-5)
+    assert regs["fs_percent"] == pytest.approx(100 * before["fs_ratio"], rel=1e-5)
+    assert regs["jump_percent"] == pytest.approx(100 * before["jump_ratio"], rel=1e-5)
     assert regs["oscillation_period_seconds"] == pytest.approx(
-        before["oscillation_period_seconds"], rel=1e-6
+        before["oscillation_period_seconds"], rel=1e-5
     )
-    assert regs["window_fill_ratio"] == pytest.approx(before["window_fill_ratio"], rel=1e-6)
+    assert regs["window_fill_ratio"] == pytest.approx(before["window_fill_ratio"], rel=1e-5)
     assert 0 < before["fd_ratio"] < 1
 
 
