@@ -1,4 +1,4 @@
-"""`stiction-gateway` command line: run, check-config, plc-sim, demo.
+"""`stiction-gateway` command line: run, check-config, plc-sim, demo, opcua-cert.
 
 Exit status: 0 ok, 1 runtime failure (e.g. a port in use), 2 bad usage or bad config (the
 problems are printed on stderr, one per line, each naming the file, section and key).
@@ -40,6 +40,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="simulated PLC + gateway with a live verdict table")
     demo.add_argument("--duration", type=float, default=None, metavar="S",
                       help="stop after S wall seconds (default: run until Ctrl-C)")
+    sub.add_parser("opcua-cert", add_help=False,
+                   help="create an OPC UA client (or --server) certificate and key "
+                        "(see `stiction-gateway opcua-cert --help`, docs/opcua.md)")
     return parser
 
 
@@ -51,7 +54,13 @@ def _problems(exc: ConfigError) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, rest = parser.parse_known_args(argv)
+    if args.command == "opcua-cert":  # its own parser: pass the remaining arguments on
+        from . import opcua_cert
+
+        return opcua_cert.main(rest)
+    if rest:
+        parser.error(f"unrecognized arguments: {' '.join(rest)}")
     if args.command is None:
         parser.print_help()
         return 0
@@ -60,6 +69,10 @@ def main(argv: list[str] | None = None) -> int:
     # the adapters report every pymodbus failure as a DeviceError, logged once per outage by
     # the poller; pymodbus' own per-attempt lines would repeat it every retry
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    # likewise asyncua: the OPC UA adapter maps its failures to DeviceError; its own loggers
+    # would add hostname warnings and a traceback for every refused certificate
+    for name in ("asyncua", "asyncuagds"):
+        logging.getLogger(name).setLevel(logging.ERROR)
     try:
         return _dispatch(args)
     except ConfigError as exc:

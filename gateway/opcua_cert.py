@@ -184,6 +184,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             hostnames=args.hosts or [socket.gethostname()], days=args.days,
             server=args.server, overwrite=args.force,
         )
+    except FileExistsError as exc:
+        print(f"opcua-cert: {exc.args[0].replace('use overwrite', 'use --force')}",
+              file=sys.stderr)
+        return 1
     except (OSError, ValueError) as exc:
         print(f"opcua-cert: {exc}", file=sys.stderr)
         return 1

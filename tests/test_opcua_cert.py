@@ -12,6 +12,7 @@ import pytest
 from cryptography import x509
 from cryptography.x509.oid import ExtendedKeyUsageOID
 
+from gateway.cli import main as gateway_main
 from gateway.opcua_cert import (
     application_uri_of,
     load_certificate_file,
@@ -64,10 +65,22 @@ def test_opcua_cert_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert f"certificate: {cert} (CN=stiction-gateway, SHA-1 thumbprint " in out
     assert "application URI: urn:t:gw" in out
     assert main(["--cert", str(cert), "--key", str(key)]) == 1
-    assert "exists (use overwrite to replace it)" in capsys.readouterr().err
+    assert "exists (use --force to replace it)" in capsys.readouterr().err
     assert main(["--cert", str(cert), "--key", str(key), "--server", "--force"]) == 0
     eku = load_certificate_file(cert).extensions.get_extension_for_class(x509.ExtendedKeyUsage)
     assert list(eku.value) == [ExtendedKeyUsageOID.SERVER_AUTH]
+
+
+def test_opcua_cert_is_a_gateway_subcommand(tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    cert, key = tmp_path / "c.der", tmp_path / "c.pem"
+    assert gateway_main(["opcua-cert", "--cert", str(cert), "--key", str(key),
+                         "--uri", "urn:t:gw"]) == 0
+    assert "application URI: urn:t:gw" in capsys.readouterr().out
+    assert stat.S_IMODE(key.stat().st_mode) == 0o600
+    with pytest.raises(SystemExit) as info:
+        gateway_main(["opcua-cert", "--bogus"])
+    assert info.value.code == 2
 
 
 def test_plcsim_server_argument_checks(tmp_path: Path) -> None:

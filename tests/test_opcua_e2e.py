@@ -62,6 +62,9 @@ def gateway_yaml(sim_path: Path, gw_path: Path, port: int, pki: Pki) -> None:
 
 
 def test_plcsim_to_gateway_over_secure_opcua(pki: Pki, tmp_path: Path) -> None:
+    """As the Modbus end-to-end test, over OPC UA: the real stiction.analyze in worker
+    processes calls the sticky loop `stiction` with fd and fs within 10 % of the simulated
+    valve's (0.27, 0.30) and the healthy loop not oscillating."""
     sim_path, gw_path = write_configs(pki, tmp_path)
 
     async def main() -> None:
@@ -70,22 +73,31 @@ def test_plcsim_to_gateway_over_secure_opcua(pki: Pki, tmp_path: Path) -> None:
             gateway_yaml(sim_path, gw_path, sim.port, pki)
             cfg = load_config(gw_path)  # through the opcua protocol plugin
             assert cfg.devices[0].protocol == "opcua"
-            async with Gateway(cfg, analyze=FAKE, serve_http=False) as gw:
-                deadline = time.monotonic() + 40
+            gw = Gateway(cfg, serve_http=False)
+            gw.align_polls(sim.mid_step())
+            async with gw:
+                deadline = time.monotonic() + 60
                 while time.monotonic() < deadline:
-                    if all(r is not None for r in gw.store.results):
+                    names = [gw.store.verdict_name(i) for i in range(2)]
+                    first = gw.store.results[0]
+                    sized = first is not None and first.assessment.fd is not None
+                    if names[0] == "stiction" and sized and gw.store.results[1] is not None:
                         break
-                    await asyncio.sleep(0.2)
-                names = [gw.store.verdict_name(i) for i in range(2)]
-                assert names[0] == "stiction"
-                assert names[1].replace("_", " ") == "not oscillating"
+                    await asyncio.sleep(0.5)
+                assert names[0] == "stiction", gw.store.results[0]
+                assert names[1] in {"not_oscillating", "bad_data"}, gw.store.results[1]
+                sticky = gw.store.results[0]
+                assert sticky is not None
+                a = sticky.assessment
+                assert a.fd == pytest.approx(0.27, rel=0.10)
+                assert a.fs == pytest.approx(0.30, rel=0.10)
                 # the latest samples are the simulated ones (float64 over OPC UA)
                 assert np.all(np.isfinite(gw.store.latest_op))
                 assert np.all(np.abs(gw.store.latest_pv - 50.0) < 10.0)
                 poller = gw.pollers[0]
                 assert poller.up is True
 
-    run(main(), timeout=80)
+    run(main(), timeout=85)
 
 
 def test_gateway_config_errors_name_the_opcua_keys(pki: Pki, tmp_path: Path) -> None:
