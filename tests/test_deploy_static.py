@@ -308,8 +308,9 @@ def test_rules_load_into_prometheus(empty_prometheus: Prometheus) -> None:
 # ------------------------------------------------------------------ docs/dashboards.md
 
 
-def test_dashboards_doc_lists_every_panel_and_query() -> None:
-    doc = (REPO / "docs" / "dashboards.md").read_text()
+@pytest.mark.parametrize("page", ["docs/dashboards.md", "README.md"])
+def test_dashboards_doc_lists_every_panel_and_query(page: str) -> None:
+    doc = (REPO / page).read_text()
     for d in load_dashboards().values():
         assert d["title"] in doc
         for panel in iter_panels(d["panels"]):
