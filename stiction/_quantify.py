@@ -42,7 +42,7 @@ import dataclasses
 import numpy as np
 
 from ._detect import noise_sd
-from ._segments import closed_rss, ragged
+from ._segments import closed_rss, ragged, row_chunks
 from ._switching import Switches, find_switches
 from ._validate import FloatArray
 
@@ -101,7 +101,7 @@ def _second_steps(
     at the split, else NaN. Sums over the left pieces are prefix sums and over the right
     pieces suffix sums, so neither suffers cancellation; the basis is referenced to the
     middle of each half cycle (a scale factor, which the 2-parameter fit does not see).
-    All half cycles at once, as rows of a zero-padded matrix.
+    Half cycles as rows of zero-padded matrices, a few thousand entries at a time.
     """
     out = np.full(i.size, np.nan)
     n = j - i
@@ -109,6 +109,14 @@ def _second_steps(
     if ks.size == 0:
         return out
     i, n = i[ks], n[ks]
+    for sl in row_chunks(n):
+        out[ks[sl]] = _split_rows(y, i[sl], n[sl], tau, margin)
+    return out
+
+
+def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
+                margin: int) -> FloatArray:
+    """:func:`_second_steps` for a chunk of half cycles ``y[i[k]:i[k] + n[k]]``."""
     idx, mask = ragged(i, n)
     t = (idx - i[:, None]) - n[:, None] / 2.0
     g = t if tau is None else np.exp(np.clip(-t / tau, -300.0, 300.0))
@@ -129,8 +137,7 @@ def _second_steps(
         step = np.take_along_axis(b_right - b_left, k, axis=1)[:, 0]
     else:
         step = np.take_along_axis(a_right - a_left, k, axis=1)[:, 0]
-    out[ks] = np.where(f >= F_SPLIT, step, np.nan)
-    return out
+    return np.asarray(np.where(f >= F_SPLIT, step, np.nan))
 
 
 def quantify(

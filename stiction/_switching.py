@@ -104,16 +104,24 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
     return np.asarray(out, dtype=np.intp)
 
 
+def _interval_sums(y: FloatArray, i: np.ndarray, j: np.ndarray, refs: FloatArray,
+                   tau: float | None) -> FloatArray:
+    """Sums (n, Sg, Sgg, Sy, Syg, Syy) of ``y ~ a + b g(t - refs[k])`` over each nonempty
+    ``[i[k], j[k])``, as a (6, K) array: one flat pass, no padding."""
+    lengths = j - i
+    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    seg = np.repeat(np.arange(i.size), lengths)
+    idx = np.arange(int(lengths.sum())) + (i - starts)[seg]
+    t_rel = idx - refs[seg]
+    g = t_rel if tau is None else np.exp(-np.clip(t_rel / tau, -50.0, 700.0))
+    return np.asarray(np.add.reduceat(sums2(g, y[idx]), starts, axis=1))
+
+
 def _segment_sums(
     y: FloatArray, bounds: np.ndarray, refs: FloatArray, tau: float | None
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Fit a + b g on each [bounds[k,0], bounds[k,1]); returns a, b, rss, count."""
-    idx = np.concatenate([np.arange(i, j) for i, j in bounds])
-    seg = np.repeat(np.arange(bounds.shape[0]), bounds[:, 1] - bounds[:, 0])
-    starts = np.concatenate(([0], np.cumsum(bounds[:, 1] - bounds[:, 0])[:-1]))
-    t_rel = idx - refs[seg]
-    g = t_rel if tau is None else np.exp(-np.clip(t_rel / tau, -50.0, 700.0))
-    sums = np.add.reduceat(sums2(g, y[idx]), starts, axis=1)
+    sums = _interval_sums(y, bounds[:, 0], bounds[:, 1], refs, tau)
     r, a, b = closed_rss(sums)
     return a, b, r, sums[0]
 
@@ -164,9 +172,10 @@ def _refine(
 ) -> FloatArray:
     """Re-search each onset within +-reach with the model curves; fractional result.
 
-    All onsets at once: each onset's search interval (from the previous onset to the next,
-    less ``guard``) is one row of a zero-padded matrix, so the candidate fits of every
-    onset come from one cumulative sum (padding adds zeros to every sum)."""
+    All onsets at once: the left curve is fitted over ``[lo, c)`` (from the previous onset),
+    the right one over ``[c, hi)`` (to the next), for every candidate ``c`` in ``[c_lo,
+    c_hi)``; the candidates of each onset are one row of a zero-padded matrix (padding adds
+    zeros to every sum)."""
     n = y.size
     out = onsets.astype(np.float64).copy()
     c = np.round(onsets).astype(np.intp)
@@ -189,16 +198,19 @@ def _refine(
     # differences of such would swamp the fit
     ref_l = np.where(ks > 0, onsets[np.maximum(ks - 1, 0)], lo.astype(np.float64))
     ref_r = c_lo.astype(np.float64)
-    il, ml = ragged(lo, c_hi - lo)
-    ir, mr = ragged(c_lo, hi - c_lo)
-    s_l = np.cumsum(sums2(_basis(il.astype(np.float64), ref_l, tau), y[il]) * ml, axis=2)
-    s_r = np.cumsum((sums2(_basis(ir.astype(np.float64), ref_r, tau), y[ir]) * mr)[..., ::-1],
-                    axis=2)[..., ::-1]
+    # the sums over [lo, c_lo) and [c_hi, hi) are common to all candidates of an onset; only
+    # the stretch [c_lo, c_hi) needs cumulative sums (one zero-padded row per onset)
+    bulk_l = _interval_sums(y, lo, c_lo, ref_l, tau)[..., None]
+    bulk_r = _interval_sums(y, c_hi, hi, ref_r, tau)[..., None]
     cand, mc = ragged(c_lo, c_hi - c_lo)
-    pos_l = np.where(mc, cand - lo[:, None] - 1, 0)
-    pos_r = np.where(mc, cand - c_lo[:, None], 0)
-    r_l, a_l, b_l = closed_rss(np.take_along_axis(s_l, pos_l[None], axis=2))
-    r_r, a_r, b_r = closed_rss(np.take_along_axis(s_r, pos_r[None], axis=2))
+    t = cand.astype(np.float64)
+    part_l = sums2(_basis(t, ref_l, tau), y[cand]) * mc
+    s_l = bulk_l + np.concatenate((np.zeros_like(part_l[..., :1]),
+                                   np.cumsum(part_l[..., :-1], axis=2)), axis=2)
+    part_r = sums2(_basis(t, ref_r, tau), y[cand]) * mc
+    s_r = bulk_r + np.cumsum(part_r[..., ::-1], axis=2)[..., ::-1]
+    r_l, a_l, b_l = closed_rss(s_l)
+    r_r, a_r, b_r = closed_rss(s_r)
     best = np.argmin(np.where(mc, r_l + r_r, np.inf), axis=1)[:, None]
 
     def pick(v: FloatArray) -> FloatArray:
