@@ -39,6 +39,7 @@ _STEP = 0.5
 _LOG_S_GRID = np.arange(-6.0, 12.0 + 1e-9, _STEP)
 _COARSE = 4  # the first search tries every 4th grid point (2 decades), then refines
 _LAST = _LOG_S_GRID.size - 1
+_BLOCK = 32768  # grid x frequency entries per pass of _gcv
 
 
 def _gcv_s(dct_y: FloatArray, lam2: FloatArray, near: float | None = None) -> float:
@@ -82,15 +83,24 @@ def _gcv_s(dct_y: FloatArray, lam2: FloatArray, near: float | None = None) -> fl
 
 def _gcv(y2: FloatArray, lam2: FloatArray, log_s: FloatArray) -> FloatArray:
     """GCV at each ``log_s`` from the squared DCT coefficients ``y2``. With
-    ``q = 1 - gamma = s L / (1 + s L)``: RSS = sum q^2 y2, 1 - tr(H)/n = mean q. In place
-    and without BLAS (a threaded BLAS costs more than it saves on a busy CPU)."""
+    ``q = 1 - gamma = s L / (1 + s L)``: RSS = sum q^2 y2, 1 - tr(H)/n = mean q.
+
+    Blocks of frequencies at a time, in place and without BLAS: the whole grid x n matrix
+    of a long window falls out of cache (and each such temporary is fresh memory from the
+    OS), which made long windows superlinear; a threaded BLAS costs more than it saves on
+    a busy CPU."""
     n = y2.size
-    q = np.multiply.outer(10.0**log_s, lam2)
-    np.divide(q, q + 1.0, out=q)
-    one_minus_tr = q.sum(axis=1) / n
-    np.multiply(q, q, out=q)
-    rss = np.einsum("gk,k->g", q, y2)
-    return np.asarray(rss / n / np.maximum(one_minus_tr, 1e-12) ** 2)
+    s = 10.0**log_s
+    cols = max(64, _BLOCK // s.size)
+    sum_q = np.zeros(s.size)
+    rss = np.zeros(s.size)
+    for k in range(0, n, cols):
+        q = np.multiply.outer(s, lam2[k : k + cols])
+        np.divide(q, q + 1.0, out=q)
+        sum_q += q.sum(axis=1)
+        np.multiply(q, q, out=q)
+        rss += np.einsum("gk,k->g", q, y2[k : k + cols])
+    return np.asarray(rss / n / np.maximum(sum_q / n, 1e-12) ** 2)
 
 
 def _leverage(s: float) -> float:
