@@ -68,9 +68,10 @@ def sums2(g: FloatArray, y: FloatArray) -> FloatArray:
     return np.stack((np.ones_like(g), g, g * g, y, y * g, y * y))
 
 
-def closed_rss(s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def closed_rss(s: FloatArray | tuple[FloatArray, ...]) -> tuple[FloatArray, FloatArray, FloatArray]:
     """RSS and (a, b) of ``y ~ a + b g`` from the sums (n, Sg, Sgg, Sy, Syg, Syy) along
-    axis 0; a degenerate ``g`` (constant over the interval) falls back to ``y ~ a``."""
+    axis 0 (or as six broadcastable arrays); a degenerate ``g`` (constant over the
+    interval) falls back to ``y ~ a``."""
     n, sg, sgg, sy, syg, syy = s
     det = n * sgg - sg * sg
     ok = det > 1e-12 * np.maximum(n * sgg, 1e-300)
