@@ -54,13 +54,16 @@ def noise_sd(x: FloatArray) -> float:
     return 1.4826 * mad / math.sqrt(6.0)
 
 
-def half_periods(x: FloatArray, period: float) -> tuple[FloatArray, FloatArray]:
+def half_periods(x: FloatArray, period: float, *,
+                 detrended: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """Zero crossings of detrended ``x`` (fractional sample positions) and the smoothed
-    signal they were found on. Crossings closer than a sixth of the period are merged."""
-    y = detrend(x)
+    signal they were found on. Crossings closer than a sixth of the period are merged.
+    ``detrended``: ``detrend(x)``, when the caller has it already."""
+    y = detrend(x) if detrended is None else detrended
     win = max(1, round(period / 12.0))
     ys = ndimage.uniform_filter1d(y, win, mode="nearest") if win > 1 else y
-    amp = 0.5 * float(np.percentile(ys, 95) - np.percentile(ys, 5))
+    p5, p95 = np.percentile(ys, [5, 95])
+    amp = 0.5 * float(p95 - p5)
     h = 0.1 * amp
     state = np.where(ys > h, 1, np.where(ys < -h, -1, 0))
     nz = np.flatnonzero(state)
@@ -91,8 +94,8 @@ def stiction_index(x: FloatArray, period: float) -> StictionIndex:
     All half periods are fitted at once: each is one row of a zero-padded matrix, and both
     two-parameter fits (offset + amplitude of the sine, of the triangle) follow in closed
     form from the row sums."""
-    z, ys = half_periods(x, period)
     y = detrend(x)
+    z, ys = half_periods(x, period, detrended=y)
     var_noise = noise_sd(x) ** 2
     z0, z1 = z[:-1], z[1:]
     length = z1 - z0

@@ -193,7 +193,8 @@ def quantify(
 
     # multi-jump check
     sigma = noise_sd(pv)
-    swing_pv = float(np.percentile(pv, 95) - np.percentile(pv, 5))
+    p5, p95 = np.percentile(pv, [5, 95])
+    swing_pv = float(p95 - p5)
     rms = np.sqrt(sw.rss / np.maximum(sw.count, 1.0))
     bad_fit = rms > np.maximum(RESID_NOISE_FACTOR * sigma, RESID_SWING_FRACTION * swing_pv)
     if dj.size:

@@ -59,7 +59,8 @@ class Switches:
 def _extrema(z: FloatArray, period: float) -> np.ndarray:
     """Alternating peaks and valleys of the smoothed ``z`` (indices), at least a quarter
     period apart and with a prominence of 30 % of its range."""
-    span = float(np.percentile(z, 98) - np.percentile(z, 2))
+    p2, p98 = np.percentile(z, [2, 98])
+    span = float(p98 - p2)
     dist = max(1, int(period / 4))
     pk, _ = signal.find_peaks(z, prominence=PROMINENCE * span, distance=dist)
     vl, _ = signal.find_peaks(-z, prominence=PROMINENCE * span, distance=dist)
@@ -128,9 +129,10 @@ def _segment_sums(
 
 def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float) -> float:
     """Common time constant (samples) of the exponentials of all half cycles."""
-    idx = np.concatenate([np.arange(i, j) for i, j in bounds])
-    seg_id = np.concatenate([np.full(j - i, k) for k, (i, j) in enumerate(bounds)])
-    starts = np.concatenate(([0], np.cumsum(bounds[:, 1] - bounds[:, 0])[:-1]))
+    lengths = bounds[:, 1] - bounds[:, 0]
+    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    seg_id = np.repeat(np.arange(lengths.size), lengths)
+    idx = np.arange(int(lengths.sum())) + (bounds[:, 0] - starts)[seg_id]
     t_rel = idx - refs[seg_id]
     yy = y[idx]
     n_k = np.add.reduceat(np.ones_like(yy), starts)
