@@ -108,6 +108,7 @@ def _second_steps(
     ks = np.flatnonzero(n >= 2 * margin + 8)
     if ks.size == 0:
         return out
+    ks = ks[np.argsort(n[ks], kind="stable")]  # similar lengths together: little padding
     i, n = i[ks], n[ks]
     for sl in row_chunks(n):
         out[ks[sl]] = _split_rows(y, i[sl], n[sl], tau, margin)
