@@ -227,23 +227,26 @@ def _refine(
 def _meet(left: tuple[FloatArray, FloatArray, FloatArray],
           right: tuple[FloatArray, FloatArray, FloatArray], *, tau: float | None,
           near: FloatArray) -> FloatArray:
-    """Where each pair of left and right fitted curves crosses, within two samples of
-    ``near`` (the crossing nearest to it; ``near`` itself when they do not cross). Each
-    side is ``(a, b, ref)`` of the curve ``a + b g(t - ref)``."""
+    """Where each pair of left and right fitted curves crosses, when that is within two
+    samples before or one after ``near`` (else ``near`` itself). Each side is ``(a, b,
+    ref)`` of the curve ``a + b g(t - ref)``. Their difference is ``A + B (t - near)`` for
+    ramps and ``A + B exp(-(t - near) / tau)`` for exponentials (same tau): monotone, so
+    the crossing is in closed form."""
     a_l, b_l, ref_l = left
     a_r, b_r, ref_r = right
-    grid = near[:, None] + np.linspace(-2.0, 1.0, 31)[None, :]
-    d = (a_l[:, None] + b_l[:, None] * _basis(grid, ref_l, tau)) - (
-        a_r[:, None] + b_r[:, None] * _basis(grid, ref_r, tau))
-    sc = np.signbit(d[:, 1:]) != np.signbit(d[:, :-1])
-    dist = np.where(sc, np.abs(grid[:, :-1] - near[:, None]), np.inf)
-    i = np.argmin(dist, axis=1)[:, None]
-    a = np.take_along_axis(d, i, axis=1)[:, 0]
-    b = np.take_along_axis(d, i + 1, axis=1)[:, 0]
-    g0 = np.take_along_axis(grid, i, axis=1)[:, 0]
-    g1 = np.take_along_axis(grid, i + 1, axis=1)[:, 0]
-    frac = np.where(a != b, a / np.where(a != b, a - b, 1.0), 0.5)
-    return np.where(sc.any(axis=1), g0 + (g1 - g0) * frac, near)
+    if tau is None:
+        big_a = a_l - a_r + b_l * (near - ref_l) - b_r * (near - ref_r)
+        big_b = b_l - b_r
+        ok = big_b != 0
+        step = -big_a / np.where(ok, big_b, 1.0)
+    else:
+        big_b = (b_l * np.exp(-np.clip((near - ref_l) / tau, -50.0, 700.0))
+                 - b_r * np.exp(-np.clip((near - ref_r) / tau, -50.0, 700.0)))
+        ratio = (a_r - a_l) / np.where(big_b != 0, big_b, 1.0)
+        ok = (big_b != 0) & (ratio > 0)
+        step = -tau * np.log(np.where(ok, ratio, 1.0))
+    ok &= (step >= -2.0) & (step <= 1.0)
+    return np.asarray(np.where(ok, near + step, near))
 
 
 def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switches | None:
