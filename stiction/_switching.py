@@ -28,7 +28,7 @@ import math
 import numpy as np
 from scipy import optimize, signal
 
-from ._segments import closed_rss, exp_basis, ragged, sums2
+from ._segments import closed_rss, exp_basis, ragged, row_chunks, sums2
 from ._smooth import smooth
 from ._validate import FloatArray
 
@@ -115,7 +115,12 @@ def _interval_sums(y: FloatArray, i: np.ndarray, j: np.ndarray, refs: FloatArray
     idx = np.arange(int(lengths.sum())) + (i - starts)[seg]
     t_rel = idx - refs[seg]
     g = t_rel if tau is None else np.exp(-np.clip(t_rel / tau, -50.0, 700.0))
-    return np.asarray(np.add.reduceat(sums2(g, y[idx]), starts, axis=1))
+    yy = y[idx]
+    out = np.empty((6, i.size))
+    out[0] = lengths
+    for row, v in enumerate((g, g * g, yy, yy * g, yy * yy), start=1):
+        out[row] = np.add.reduceat(v, starts)  # row by row: long windows stay in cache
+    return out
 
 
 def _segment_sums(
@@ -174,10 +179,10 @@ def _refine(
 ) -> FloatArray:
     """Re-search each onset within +-reach with the model curves; fractional result.
 
-    All onsets at once: the left curve is fitted over ``[lo, c)`` (from the previous onset),
-    the right one over ``[c, hi)`` (to the next), for every candidate ``c`` in ``[c_lo,
-    c_hi)``; the candidates of each onset are one row of a zero-padded matrix (padding adds
-    zeros to every sum)."""
+    Many onsets at once: the left curve is fitted over ``[lo, c)`` (from the previous
+    onset), the right one over ``[c, hi)`` (to the next), for every candidate ``c`` in
+    ``[c_lo, c_hi)``; the candidates of each onset are one row of a zero-padded matrix
+    (padding adds zeros to every sum)."""
     n = y.size
     out = onsets.astype(np.float64).copy()
     c = np.round(onsets).astype(np.intp)
@@ -200,28 +205,40 @@ def _refine(
     # differences of such would swamp the fit
     ref_l = np.where(ks > 0, onsets[np.maximum(ks - 1, 0)], lo.astype(np.float64))
     ref_r = c_lo.astype(np.float64)
-    # the sums over [lo, c_lo) and [c_hi, hi) are common to all candidates of an onset; only
-    # the stretch [c_lo, c_hi) needs cumulative sums (one zero-padded row per onset)
-    bulk_l = _interval_sums(y, lo, c_lo, ref_l, tau)[..., None]
-    bulk_r = _interval_sums(y, c_hi, hi, ref_r, tau)[..., None]
+    for sl in row_chunks(c_hi - c_lo):
+        out[ks[sl]] = _refine_rows(y, (lo[sl], hi[sl], c_lo[sl], c_hi[sl]),
+                                   (ref_l[sl], ref_r[sl]), tau)
+    return out
+
+
+def _refine_rows(y: FloatArray, ends: tuple[np.ndarray, ...],
+                 refs: tuple[FloatArray, FloatArray], tau: float | None) -> FloatArray:
+    """:func:`_refine` for a chunk of onsets (bounded so the matrices stay in cache).
+
+    The sums over ``[lo, c_lo)`` and ``[c_hi, hi)`` are common to all candidates of an
+    onset; only the stretch ``[c_lo, c_hi)`` needs cumulative sums (one zero-padded row per
+    onset). Left and right fits are stacked (rows ``:k`` and ``k:``) so that each step is
+    one array operation."""
+    lo, hi, c_lo, c_hi = ends
+    ref_l, ref_r = refs
+    k = lo.size
+    both = np.concatenate((ref_l, ref_r))
+    bulk = _interval_sums(y, np.concatenate((lo, c_hi)), np.concatenate((c_lo, hi)), both, tau)
     cand, mc = ragged(c_lo, c_hi - c_lo)
     t = cand.astype(np.float64)
-    part_l = sums2(_basis(t, ref_l, tau), y[cand]) * mc
-    s_l = bulk_l + np.concatenate((np.zeros_like(part_l[..., :1]),
-                                   np.cumsum(part_l[..., :-1], axis=2)), axis=2)
-    part_r = sums2(_basis(t, ref_r, tau), y[cand]) * mc
-    s_r = bulk_r + np.cumsum(part_r[..., ::-1], axis=2)[..., ::-1]
-    r_l, a_l, b_l = closed_rss(s_l)
-    r_r, a_r, b_r = closed_rss(s_r)
-    best = np.argmin(np.where(mc, r_l + r_r, np.inf), axis=1)[:, None]
-
-    def pick(v: FloatArray) -> FloatArray:
-        return np.take_along_axis(v, best, axis=1)[:, 0]
-
-    near = np.take_along_axis(cand, best, axis=1)[:, 0].astype(np.float64)
-    out[ks] = _meet((pick(a_l), pick(b_l), ref_l), (pick(a_r), pick(b_r), ref_r), tau=tau,
-                    near=near)
-    return out
+    part = sums2(_basis(np.concatenate((t, t)), both, tau), np.tile(y[cand], (2, 1)))
+    part *= np.tile(mc, (2, 1))
+    sums = np.empty_like(part)
+    sums[:, :k, 0] = 0.0
+    np.cumsum(part[:, :k, :-1], axis=2, out=sums[:, :k, 1:])  # left: over [c_lo, c)
+    np.cumsum(part[:, k:, ::-1], axis=2, out=sums[:, k:, ::-1])  # right: over [c, c_hi)
+    sums += bulk[..., None]
+    r, a, b = closed_rss(sums)
+    best = np.argmin(np.where(mc, r[:k] + r[k:], np.inf), axis=1)
+    rows = np.arange(k)
+    near = cand[rows, best].astype(np.float64)
+    return _meet((a[rows, best], b[rows, best], ref_l),
+                 (a[rows + k, best], b[rows + k, best], ref_r), tau=tau, near=near)
 
 
 def _meet(left: tuple[FloatArray, FloatArray, FloatArray],
