@@ -92,17 +92,22 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
         return np.empty(0, dtype=np.intp)
     z, _ = smooth(x[: nb * m].reshape(nb, m).mean(axis=1), robust=True)
     ext = _extrema(z, period / m)
-    out = []
-    for k, e in enumerate(ext.tolist()):
-        nxt = int(ext[k + 1]) if k + 1 < ext.size else nb - 1
-        seg = z[e : nxt + 1]
-        sign = 1.0 if k + 1 >= ext.size or z[e] > z[nxt] else -1.0
-        swing = abs(float(z[e] - z[nxt])) if k + 1 < ext.size else abs(float(z[e] - z[ext[k - 1]]))
-        near = np.flatnonzero(sign * (z[e] - seg) <= 0.05 * swing)
-        if k + 1 >= ext.size and near[-1] == seg.size - 1:
-            break  # PV never leaves the last plateau: no onset in the window
-        out.append((e + int(near[-1])) * m + m // 2)
-    return np.asarray(out, dtype=np.intp)
+    if ext.size == 0:
+        return np.empty(0, dtype=np.intp)
+    # per extremum: the stretch to the next one (the last: to the window end), the swing of
+    # that stretch (the last: the swing before it), and which way PV leaves
+    nxt = np.append(ext[1:], nb - 1)
+    ze, zn = z[ext], z[nxt]
+    swing = np.abs(ze - zn)
+    swing[-1] = abs(float(ze[-1] - z[ext[-2] if ext.size > 1 else ext[-1]]))
+    sign = np.where(ze > zn, 1.0, -1.0)
+    sign[-1] = 1.0
+    idx, mask = ragged(ext, nxt - ext + 1)
+    near = mask & (sign[:, None] * (ze[:, None] - z[idx]) <= (0.05 * swing)[:, None])
+    pos = idx.shape[1] - 1 - np.argmax(near[:, ::-1], axis=1)  # last such sample
+    keep = np.ones(ext.size, dtype=bool)
+    keep[-1] = pos[-1] != nxt[-1] - ext[-1]  # PV never leaves the last plateau: no onset
+    return np.asarray((ext + pos)[keep] * m + m // 2, dtype=np.intp)
 
 
 def _interval_sums(y: FloatArray, i: np.ndarray, j: np.ndarray, refs: FloatArray,
