@@ -141,7 +141,11 @@ def smooth(
     # weighted / robust: Garcia's iteration, started from a linear interpolation
     idx = np.arange(n)
     good = w0 > 0
-    z = np.interp(idx, idx[good], y[good]) if good.any() else np.zeros(n)
+    all_good = bool(good.all())
+    if all_good:
+        z = y_f.copy()
+    else:
+        z = np.interp(idx, idx[good], y[good]) if good.any() else np.zeros(n)
     w = w0.copy()
     s_ = 1.0 if s is None else s
     s_searched = False
@@ -153,18 +157,25 @@ def smooth(
                 s_ = _gcv_s(dct_r, lam2, near=s_ if s_searched else None)
                 s_searched = True
             z_new = np.asarray(fft.idct(dct_r / (1.0 + s_ * lam2), norm="ortho"))
+            if unit:
+                z = z_new
+                break
             dz = z_new - z
             change = math.sqrt(dot(dz, dz) / max(dot(z_new, z_new), 1e-300))
             z = z_new
             if change < tol:
                 break
         if robust and step < robust_steps:
-            r = (y_f - z)[good]
+            r = y_f - z if all_good else (y_f - z)[good]
             mad = float(np.median(np.abs(r - np.median(r))))
             if mad <= 0:
                 break
-            u = np.zeros(n)
-            u[good] = r / (1.4826 * mad * math.sqrt(max(1.0 - _leverage(s_), 1e-6)))
+            scale = 1.4826 * mad * math.sqrt(max(1.0 - _leverage(s_), 1e-6))
+            if all_good:
+                u = r / scale
+            else:
+                u = np.zeros(n)
+                u[good] = r / scale
             bis = np.where(np.abs(u) < _BISQUARE_C, (1.0 - (u / _BISQUARE_C) ** 2) ** 2, 0.0)
             w = w0 * bis
     return z, s_

@@ -143,23 +143,25 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
     starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
     seg_id = np.repeat(np.arange(lengths.size), lengths)
     idx = np.arange(int(lengths.sum())) + (bounds[:, 0] - starts)[seg_id]
-    t_rel = idx - refs[seg_id]
+    neg_t = -(idx - refs[seg_id])
     yy = y[idx]
-    n_k = np.add.reduceat(np.ones_like(yy), starts)
+    n_k = lengths.astype(np.float64)
     sy = np.add.reduceat(yy, starts)
     syy = np.add.reduceat(yy * yy, starts)
+    tiny = 1e-12 * n_k * n_k
+    mean_fit = sy * sy / n_k
 
     def total(log_tau: float) -> float:
-        g = np.exp(-t_rel / math.exp(log_tau))
+        g = np.exp(neg_t / math.exp(log_tau))
         sg = np.add.reduceat(g, starts)
         sgg = np.add.reduceat(g * g, starts)
         syg = np.add.reduceat(yy * g, starts)
         det = n_k * sgg - sg * sg
-        ok = det > 1e-12 * n_k * n_k
+        ok = det > tiny
         fit = np.where(
             ok,
             (sy * (sgg * sy - sg * syg) + syg * (n_k * syg - sg * sy)) / np.where(ok, det, 1.0),
-            sy * sy / n_k,
+            mean_fit,
         )
         # trimmed: the worst quarter of the half cycles (a misplaced switch, a double
         # jump) must not drag the time constant
