@@ -29,7 +29,7 @@ from scipy import ndimage
 
 from ._oscillation import detrend
 from ._segments import ragged, row_chunks
-from ._validate import FloatArray
+from ._validate import FloatArray, median
 
 __all__ = ["NO_STICTION_SI", "STICTION_SI", "StictionIndex", "half_periods", "stiction_index"]
 
@@ -50,7 +50,7 @@ def noise_sd(x: FloatArray) -> float:
     if x.size < 4:
         return 0.0
     d2 = np.diff(x, 2)
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    mad = median(np.abs(d2 - median(d2)))
     return 1.4826 * mad / math.sqrt(6.0)
 
 

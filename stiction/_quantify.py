@@ -44,7 +44,7 @@ import numpy as np
 from ._detect import noise_sd
 from ._segments import closed_rss, ragged, row_chunks
 from ._switching import Switches, find_switches
-from ._validate import FloatArray
+from ._validate import FloatArray, median
 
 __all__ = ["Quantification", "quantify"]
 
@@ -199,7 +199,7 @@ def quantify(
     rms = np.sqrt(sw.rss / np.maximum(sw.count, 1.0))
     bad_fit = rms > np.maximum(RESID_NOISE_FACTOR * sigma, RESID_SWING_FRACTION * swing_pv)
     if dj.size:
-        typical = float(np.median(np.abs(dj)))
+        typical = median(np.abs(dj))
         c = np.floor(sw.onsets).astype(np.intp) + 1
         step = _second_steps(pv, c[:-1], c[1:], sw.tau, margin=max(5, int(0.02 * period)))
         main = np.concatenate(([-dj[0]], dj))[: sw.a.size]

@@ -19,7 +19,7 @@ import math
 import numpy as np
 from scipy import fft
 
-from ._validate import FloatArray, dot
+from ._validate import FloatArray, dot, median
 
 __all__ = ["smooth"]
 
@@ -167,7 +167,7 @@ def smooth(
                 break
         if robust and step < robust_steps:
             r = y_f - z if all_good else (y_f - z)[good]
-            mad = float(np.median(np.abs(r - np.median(r))))
+            mad = median(np.abs(r - median(r)))
             if mad <= 0:
                 break
             scale = 1.4826 * mad * math.sqrt(max(1.0 - _leverage(s_), 1e-6))
