@@ -28,8 +28,8 @@ import numpy as np
 from scipy import ndimage
 
 from ._oscillation import detrend
-from ._segments import ragged
-from ._validate import FloatArray
+from ._segments import ragged, row_chunks
+from ._validate import FloatArray, median
 
 __all__ = ["NO_STICTION_SI", "STICTION_SI", "StictionIndex", "half_periods", "stiction_index"]
 
@@ -50,17 +50,20 @@ def noise_sd(x: FloatArray) -> float:
     if x.size < 4:
         return 0.0
     d2 = np.diff(x, 2)
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    mad = median(np.abs(d2 - median(d2)))
     return 1.4826 * mad / math.sqrt(6.0)
 
 
-def half_periods(x: FloatArray, period: float) -> tuple[FloatArray, FloatArray]:
+def half_periods(x: FloatArray, period: float, *,
+                 detrended: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """Zero crossings of detrended ``x`` (fractional sample positions) and the smoothed
-    signal they were found on. Crossings closer than a sixth of the period are merged."""
-    y = detrend(x)
+    signal they were found on. Crossings closer than a sixth of the period are merged.
+    ``detrended``: ``detrend(x)``, when the caller has it already."""
+    y = detrend(x) if detrended is None else detrended
     win = max(1, round(period / 12.0))
     ys = ndimage.uniform_filter1d(y, win, mode="nearest") if win > 1 else y
-    amp = 0.5 * float(np.percentile(ys, 95) - np.percentile(ys, 5))
+    p5, p95 = np.percentile(ys, [5, 95])
+    amp = 0.5 * float(p95 - p5)
     h = 0.1 * amp
     state = np.where(ys > h, 1, np.where(ys < -h, -1, 0))
     nz = np.flatnonzero(state)
@@ -88,11 +91,12 @@ def half_periods(x: FloatArray, period: float) -> tuple[FloatArray, FloatArray]:
 def stiction_index(x: FloatArray, period: float) -> StictionIndex:
     """He et al. (2007) stiction index of ``x`` oscillating with ``period`` samples.
 
-    All half periods are fitted at once: each is one row of a zero-padded matrix, and both
-    two-parameter fits (offset + amplitude of the sine, of the triangle) follow in closed
-    form from the row sums."""
-    z, ys = half_periods(x, period)
+    Many half periods are fitted at once: each is one row of a zero-padded matrix (rows of
+    similar length together, a few thousand entries at a time), and both two-parameter fits
+    (offset + amplitude of the sine, of the triangle) follow in closed form from the row
+    sums."""
     y = detrend(x)
+    z, ys = half_periods(x, period, detrended=y)
     var_noise = noise_sd(x) ** 2
     z0, z1 = z[:-1], z[1:]
     length = z1 - z0
@@ -103,19 +107,14 @@ def stiction_index(x: FloatArray, period: float) -> StictionIndex:
     count = int(np.count_nonzero(keep))
     if count < 2:
         return StictionIndex(None, count, 0.0, 0.0)
-    z0, length, i0, i1 = z0[keep], length[keep], i0[keep], i1[keep]
-    idx, mask = ragged(i0, i1 - i0)
-    n_k = (i1 - i0).astype(np.float64)
-    seg = np.where(mask, y[idx], 0.0)
-    u = (idx - z0[:, None]) / length[:, None]
-    sine = np.sin(np.pi * u)
-    # the triangle's apex: the half period's extremum of the smoothed signal
-    sgn = np.sign(seg.sum(axis=1))
-    k = np.argmax(np.where(mask, sgn[:, None] * ys[idx], -np.inf), axis=1)[:, None]
-    up = np.clip(np.take_along_axis(u, k, axis=1), 0.05, 0.95)
-    tri = np.where(u <= up, u / up, (1.0 - u) / (1.0 - up))
-    sse_s = float(np.sum(_sse_rows(seg, sine, mask, n_k)))
-    sse_t = float(np.sum(_sse_rows(seg, tri, mask, n_k)))
+    z0, length, i0, n_k = z0[keep], length[keep], i0[keep], (i1 - i0)[keep]
+    order = np.argsort(n_k, kind="stable")
+    sse_s = sse_t = 0.0
+    for sl in row_chunks(n_k[order]):
+        rows = order[sl]
+        s, t = _sse_pair(y, ys, (z0[rows], length[rows]), i0[rows], n_k[rows])
+        sse_s += s
+        sse_t += t
     n_used = float(n_k.sum())
     mse_s = max(sse_s / n_used - var_noise, 0.0)
     mse_t = max(sse_t / n_used - var_noise, 0.0)
@@ -124,12 +123,32 @@ def stiction_index(x: FloatArray, period: float) -> StictionIndex:
     return StictionIndex(si, count, mse_s, mse_t)
 
 
-def _sse_rows(y: FloatArray, basis: FloatArray, mask: np.ndarray, n: FloatArray) -> FloatArray:
-    """Per row, the residual sum of squares of y ~ c + a * basis over the masked entries
-    (rows centred first, so the closed form does not cancel)."""
+def _sse_pair(y: FloatArray, ys: FloatArray, span: tuple[FloatArray, FloatArray],
+              i0: np.ndarray, n: np.ndarray) -> tuple[float, float]:
+    """Residual sums of squares of the half-sine and the triangle fits over the half periods
+    ``y[i0[k]:i0[k] + n[k]]`` (zero crossings ``z0``, ``z0 + length``)."""
+    z0, length = span
+    idx, mask = ragged(i0, n)
+    nf = n.astype(np.float64)
+    seg = np.where(mask, y[idx], 0.0)
+    row_sum = seg.sum(axis=1)
+    yc = np.where(mask, seg - (row_sum / nf)[:, None], 0.0)
+    u = (idx - z0[:, None]) / length[:, None]
+    sine = np.sin(np.pi * u)
+    # the triangle's apex: the half period's extremum of the smoothed signal
+    sgn = np.sign(row_sum)
+    k = np.argmax(np.where(mask, sgn[:, None] * ys[idx], -np.inf), axis=1)[:, None]
+    up = np.clip(np.take_along_axis(u, k, axis=1), 0.05, 0.95)
+    tri = np.where(u <= up, u / up, (1.0 - u) / (1.0 - up))
+    return (float(np.sum(_sse_rows(yc, sine, mask, nf))),
+            float(np.sum(_sse_rows(yc, tri, mask, nf))))
+
+
+def _sse_rows(yc: FloatArray, basis: FloatArray, mask: np.ndarray, n: FloatArray) -> FloatArray:
+    """Per row, the residual sum of squares of y ~ c + a * basis over the masked entries,
+    from the centred rows ``yc`` of y (centred first, so the closed form does not cancel)."""
     b = np.where(mask, basis, 0.0)
     bc = np.where(mask, b - (b.sum(axis=1) / n)[:, None], 0.0)
-    yc = np.where(mask, y - (y.sum(axis=1) / n)[:, None], 0.0)
     den = np.einsum("ij,ij->i", bc, bc)
     num = np.einsum("ij,ij->i", bc, yc)
     a = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)

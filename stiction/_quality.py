@@ -15,7 +15,7 @@ import dataclasses
 
 import numpy as np
 
-from ._validate import FloatArray
+from ._validate import FloatArray, median
 
 __all__ = ["MIN_SAMPLES", "Cleaned", "check_quality"]
 
@@ -71,7 +71,7 @@ def _levels(x: FloatArray) -> float:
     # unquantised data has steps of every size; only call it a quantum if steps are
     # (nearly) multiples of it
     ratio = steps / q
-    if np.median(np.abs(ratio - np.round(ratio))) > 0.05:
+    if median(np.abs(ratio - np.round(ratio))) > 0.05:
         return float("inf")
     return span / q
 

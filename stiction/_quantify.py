@@ -42,9 +42,9 @@ import dataclasses
 import numpy as np
 
 from ._detect import noise_sd
-from ._segments import closed_rss, ragged
+from ._segments import closed_rss, ragged, row_chunks
 from ._switching import Switches, find_switches
-from ._validate import FloatArray
+from ._validate import FloatArray, median
 
 __all__ = ["Quantification", "quantify"]
 
@@ -101,36 +101,66 @@ def _second_steps(
     at the split, else NaN. Sums over the left pieces are prefix sums and over the right
     pieces suffix sums, so neither suffers cancellation; the basis is referenced to the
     middle of each half cycle (a scale factor, which the 2-parameter fit does not see).
-    All half cycles at once, as rows of a zero-padded matrix.
+    Half cycles as rows of zero-padded matrices, a few thousand entries at a time.
     """
     out = np.full(i.size, np.nan)
     n = j - i
     ks = np.flatnonzero(n >= 2 * margin + 8)
     if ks.size == 0:
         return out
+    ks = ks[np.argsort(n[ks], kind="stable")]  # similar lengths together: little padding
     i, n = i[ks], n[ks]
+    for sl in row_chunks(n):
+        out[ks[sl]] = _split_rows(y, i[sl], n[sl], tau, margin)
+    return out
+
+
+def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
+                margin: int) -> FloatArray:
+    """:func:`_second_steps` for a chunk of half cycles ``y[i[k]:i[k] + n[k]]``.
+
+    Cumulative sums run only over the columns that need them: the count, and for a ramp
+    basis the sums of t and t^2, are closed forms (exact: small integers and halves)."""
     idx, mask = ragged(i, n)
-    t = (idx - i[:, None]) - n[:, None] / 2.0
-    g = t if tau is None else np.exp(np.clip(-t / tau, -300.0, 300.0))
+    nf = n.astype(np.float64)[:, None]
+    h = nf / 2.0
+    t = (idx - i[:, None]) - h
     yy = np.where(mask, y[idx], 0.0)
     yy = np.where(mask, yy - (yy.sum(axis=1) / n)[:, None], 0.0)
-    cols = np.stack((np.ones_like(yy), g, g * g, yy, yy * g, yy * yy)) * mask
+    if tau is None:
+        cols = np.stack((yy, yy * t, yy * yy))
+    else:
+        g = np.exp(np.clip(-t / tau, -300.0, 300.0))
+        cols = np.stack((g, g * g, yy, yy * g, yy * yy)) * mask
     pre = np.cumsum(cols, axis=2)  # sums over [0, c]
     suf = np.cumsum(cols[..., ::-1], axis=2)[..., ::-1]  # sums over [c, n)
-    c, mc = ragged(np.full(n.size, margin), n - 2 * margin)
-    r_left, a_left, b_left = closed_rss(np.take_along_axis(pre, (c - 1)[None], axis=2))
-    r_right, a_right, b_right = closed_rss(np.take_along_axis(suf, c[None], axis=2))
-    r_one, _, _ = closed_rss(np.take_along_axis(pre, (n - 1)[None, :, None], axis=2)[..., 0])
+    width = idx.shape[1] - 2 * margin
+    c = np.arange(margin, margin + width, dtype=np.float64)[None, :]  # split: [0, c), [c, n)
+    mc = c < nf - margin
+    left = pre[..., margin - 1 : margin - 1 + width]
+    right = suf[..., margin : margin + width]
+    one = pre[..., -1:]  # padding adds zeros: the sums over [0, n)
+    if tau is None:
+        t1 = c * ((c - 1.0) / 2.0 - h)  # sum of t over [0, c)
+        t2 = (c - 1.0) * c * (2.0 * c - 1.0) / 6.0 - h * (c - 1.0) * c + c * h * h
+        t1_all = -h  # over [0, n): n ((n - 1) / 2 - h)
+        t2_all = (nf - 1.0) * nf * (2.0 * nf - 1.0) / 6.0 - h * (nf - 1.0) * nf + nf * h * h
+        r_left, a_left, b_left = closed_rss((c, t1, t2, *left))
+        r_right, a_right, b_right = closed_rss((nf - c, t1_all - t1, t2_all - t2, *right))
+        r_one, _, _ = closed_rss((nf, t1_all, t2_all, *one))
+    else:
+        r_left, a_left, b_left = closed_rss((c, *left))
+        r_right, a_right, b_right = closed_rss((nf - c, *right))
+        r_one, _, _ = closed_rss((nf, *one))
     two = np.where(mc, r_left + r_right, np.inf)
     k = np.argmin(two, axis=1)[:, None]
     rss2 = np.take_along_axis(two, k, axis=1)[:, 0]
-    f = (r_one - rss2) / 2.0 / np.maximum(rss2 / (n - 4), 1e-300)
+    f = (r_one[:, 0] - rss2) / 2.0 / np.maximum(rss2 / (n - 4), 1e-300)
     if tau is None:
-        step = np.take_along_axis(b_right - b_left, k, axis=1)[:, 0]
+        step = np.take_along_axis(np.broadcast_to(b_right - b_left, two.shape), k, axis=1)[:, 0]
     else:
-        step = np.take_along_axis(a_right - a_left, k, axis=1)[:, 0]
-    out[ks] = np.where(f >= F_SPLIT, step, np.nan)
-    return out
+        step = np.take_along_axis(np.broadcast_to(a_right - a_left, two.shape), k, axis=1)[:, 0]
+    return np.asarray(np.where(f >= F_SPLIT, step, np.nan))
 
 
 def quantify(
@@ -164,11 +194,12 @@ def quantify(
 
     # multi-jump check
     sigma = noise_sd(pv)
-    swing_pv = float(np.percentile(pv, 95) - np.percentile(pv, 5))
+    p5, p95 = np.percentile(pv, [5, 95])
+    swing_pv = float(p95 - p5)
     rms = np.sqrt(sw.rss / np.maximum(sw.count, 1.0))
     bad_fit = rms > np.maximum(RESID_NOISE_FACTOR * sigma, RESID_SWING_FRACTION * swing_pv)
     if dj.size:
-        typical = float(np.median(np.abs(dj)))
+        typical = median(np.abs(dj))
         c = np.floor(sw.onsets).astype(np.intp) + 1
         step = _second_steps(pv, c[:-1], c[1:], sw.tau, margin=max(5, int(0.02 * period)))
         main = np.concatenate(([-dj[0]], dj))[: sw.a.size]

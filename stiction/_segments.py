@@ -14,7 +14,10 @@ import numpy as np
 
 from ._validate import FloatArray
 
-__all__ = ["Prefix", "closed_rss", "exp_basis", "prefix", "ragged", "rss", "sums2"]
+__all__ = ["Prefix", "closed_rss", "exp_basis", "prefix", "ragged", "row_chunks", "rss", "sums2"]
+
+CHUNK = 4096
+"""Entries of one zero-padded matrix of :func:`ragged` rows processed at a time."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,9 +68,10 @@ def sums2(g: FloatArray, y: FloatArray) -> FloatArray:
     return np.stack((np.ones_like(g), g, g * g, y, y * g, y * y))
 
 
-def closed_rss(s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def closed_rss(s: FloatArray | tuple[FloatArray, ...]) -> tuple[FloatArray, FloatArray, FloatArray]:
     """RSS and (a, b) of ``y ~ a + b g`` from the sums (n, Sg, Sgg, Sy, Syg, Syy) along
-    axis 0; a degenerate ``g`` (constant over the interval) falls back to ``y ~ a``."""
+    axis 0 (or as six broadcastable arrays); a degenerate ``g`` (constant over the
+    interval) falls back to ``y ~ a``."""
     n, sg, sgg, sy, syg, syy = s
     det = n * sgg - sg * sg
     ok = det > 1e-12 * np.maximum(n * sgg, 1e-300)
@@ -85,3 +89,19 @@ def ragged(starts: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndar
     off = np.arange(width)
     mask = off[None, :] < lengths[:, None]
     return starts[:, None] + np.where(mask, off[None, :], 0), mask
+
+
+def row_chunks(lengths: np.ndarray, budget: int = CHUNK) -> list[slice]:
+    """Consecutive row ranges whose padded matrices (rows x longest row) stay within
+    ``budget`` entries (at least one row each). Row-wise fits done chunk by chunk keep their
+    working set in cache: one matrix for the whole window made long windows superlinear."""
+    out: list[slice] = []
+    start, width = 0, 0
+    for k, length in enumerate(lengths.tolist()):
+        w = max(width, int(length))
+        if k > start and w * (k + 1 - start) > budget:
+            out.append(slice(start, k))
+            start, w = k, int(length)
+        width = w
+    out.append(slice(start, len(lengths)))
+    return out

@@ -105,7 +105,8 @@ def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
     t = np.arange(M, n - M + 1)
     dy = (cy[t + M] - 2.0 * cy[t] + cy[t - M]) / M  # mean after - mean before
     du = (cu[t + M] - 2.0 * cu[t] + cu[t - M]) / M
-    rng = float(np.percentile(pv, 98) - np.percentile(pv, 2))
+    p2, p98 = np.percentile(pv, [2, 98])
+    rng = float(p98 - p2)
     thr = max(JUMP_NOISE * noise_sd(pv) * math.sqrt(2.0 / M), JUMP_RANGE_FRACTION * rng)
     if thr <= 0:
         return StickSlip((), True)

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from scipy import optimize, signal
 
-from ._segments import closed_rss, exp_basis, ragged, sums2
+from ._segments import closed_rss, exp_basis, ragged, row_chunks, sums2
 from ._smooth import smooth
 from ._validate import FloatArray
 
@@ -59,7 +59,8 @@ class Switches:
 def _extrema(z: FloatArray, period: float) -> np.ndarray:
     """Alternating peaks and valleys of the smoothed ``z`` (indices), at least a quarter
     period apart and with a prominence of 30 % of its range."""
-    span = float(np.percentile(z, 98) - np.percentile(z, 2))
+    p2, p98 = np.percentile(z, [2, 98])
+    span = float(p98 - p2)
     dist = max(1, int(period / 4))
     pk, _ = signal.find_peaks(z, prominence=PROMINENCE * span, distance=dist)
     vl, _ = signal.find_peaks(-z, prominence=PROMINENCE * span, distance=dist)
@@ -91,55 +92,76 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
         return np.empty(0, dtype=np.intp)
     z, _ = smooth(x[: nb * m].reshape(nb, m).mean(axis=1), robust=True)
     ext = _extrema(z, period / m)
-    out = []
-    for k, e in enumerate(ext.tolist()):
-        nxt = int(ext[k + 1]) if k + 1 < ext.size else nb - 1
-        seg = z[e : nxt + 1]
-        sign = 1.0 if k + 1 >= ext.size or z[e] > z[nxt] else -1.0
-        swing = abs(float(z[e] - z[nxt])) if k + 1 < ext.size else abs(float(z[e] - z[ext[k - 1]]))
-        near = np.flatnonzero(sign * (z[e] - seg) <= 0.05 * swing)
-        if k + 1 >= ext.size and near[-1] == seg.size - 1:
-            break  # PV never leaves the last plateau: no onset in the window
-        out.append((e + int(near[-1])) * m + m // 2)
-    return np.asarray(out, dtype=np.intp)
+    if ext.size == 0:
+        return np.empty(0, dtype=np.intp)
+    # per extremum: the stretch to the next one (the last: to the window end), the swing of
+    # that stretch (the last: the swing before it), and which way PV leaves
+    nxt = np.append(ext[1:], nb - 1)
+    ze, zn = z[ext], z[nxt]
+    swing = np.abs(ze - zn)
+    swing[-1] = abs(float(ze[-1] - z[ext[-2] if ext.size > 1 else ext[-1]]))
+    sign = np.where(ze > zn, 1.0, -1.0)
+    sign[-1] = 1.0
+    idx, mask = ragged(ext, nxt - ext + 1)
+    near = mask & (sign[:, None] * (ze[:, None] - z[idx]) <= (0.05 * swing)[:, None])
+    pos = idx.shape[1] - 1 - np.argmax(near[:, ::-1], axis=1)  # last such sample
+    keep = np.ones(ext.size, dtype=bool)
+    keep[-1] = pos[-1] != nxt[-1] - ext[-1]  # PV never leaves the last plateau: no onset
+    return np.asarray((ext + pos)[keep] * m + m // 2, dtype=np.intp)
+
+
+def _interval_sums(y: FloatArray, i: np.ndarray, j: np.ndarray, refs: FloatArray,
+                   tau: float | None) -> FloatArray:
+    """Sums (n, Sg, Sgg, Sy, Syg, Syy) of ``y ~ a + b g(t - refs[k])`` over each nonempty
+    ``[i[k], j[k])``, as a (6, K) array: one flat pass, no padding."""
+    lengths = j - i
+    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    seg = np.repeat(np.arange(i.size), lengths)
+    idx = np.arange(int(lengths.sum())) + (i - starts)[seg]
+    t_rel = idx - refs[seg]
+    g = t_rel if tau is None else np.exp(-np.clip(t_rel / tau, -50.0, 700.0))
+    yy = y[idx]
+    out = np.empty((6, i.size))
+    out[0] = lengths
+    for row, v in enumerate((g, g * g, yy, yy * g, yy * yy), start=1):
+        out[row] = np.add.reduceat(v, starts)  # row by row: long windows stay in cache
+    return out
 
 
 def _segment_sums(
     y: FloatArray, bounds: np.ndarray, refs: FloatArray, tau: float | None
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Fit a + b g on each [bounds[k,0], bounds[k,1]); returns a, b, rss, count."""
-    idx = np.concatenate([np.arange(i, j) for i, j in bounds])
-    seg = np.repeat(np.arange(bounds.shape[0]), bounds[:, 1] - bounds[:, 0])
-    starts = np.concatenate(([0], np.cumsum(bounds[:, 1] - bounds[:, 0])[:-1]))
-    t_rel = idx - refs[seg]
-    g = t_rel if tau is None else np.exp(-np.clip(t_rel / tau, -50.0, 700.0))
-    sums = np.add.reduceat(sums2(g, y[idx]), starts, axis=1)
+    sums = _interval_sums(y, bounds[:, 0], bounds[:, 1], refs, tau)
     r, a, b = closed_rss(sums)
     return a, b, r, sums[0]
 
 
 def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float) -> float:
     """Common time constant (samples) of the exponentials of all half cycles."""
-    idx = np.concatenate([np.arange(i, j) for i, j in bounds])
-    seg_id = np.concatenate([np.full(j - i, k) for k, (i, j) in enumerate(bounds)])
-    starts = np.concatenate(([0], np.cumsum(bounds[:, 1] - bounds[:, 0])[:-1]))
-    t_rel = idx - refs[seg_id]
+    lengths = bounds[:, 1] - bounds[:, 0]
+    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    seg_id = np.repeat(np.arange(lengths.size), lengths)
+    idx = np.arange(int(lengths.sum())) + (bounds[:, 0] - starts)[seg_id]
+    neg_t = -(idx - refs[seg_id])
     yy = y[idx]
-    n_k = np.add.reduceat(np.ones_like(yy), starts)
+    n_k = lengths.astype(np.float64)
     sy = np.add.reduceat(yy, starts)
     syy = np.add.reduceat(yy * yy, starts)
+    tiny = 1e-12 * n_k * n_k
+    mean_fit = sy * sy / n_k
 
     def total(log_tau: float) -> float:
-        g = np.exp(-t_rel / math.exp(log_tau))
+        g = np.exp(neg_t / math.exp(log_tau))
         sg = np.add.reduceat(g, starts)
         sgg = np.add.reduceat(g * g, starts)
         syg = np.add.reduceat(yy * g, starts)
         det = n_k * sgg - sg * sg
-        ok = det > 1e-12 * n_k * n_k
+        ok = det > tiny
         fit = np.where(
             ok,
             (sy * (sgg * sy - sg * syg) + syg * (n_k * syg - sg * sy)) / np.where(ok, det, 1.0),
-            sy * sy / n_k,
+            mean_fit,
         )
         # trimmed: the worst quarter of the half cycles (a misplaced switch, a double
         # jump) must not drag the time constant
@@ -164,9 +186,10 @@ def _refine(
 ) -> FloatArray:
     """Re-search each onset within +-reach with the model curves; fractional result.
 
-    All onsets at once: each onset's search interval (from the previous onset to the next,
-    less ``guard``) is one row of a zero-padded matrix, so the candidate fits of every
-    onset come from one cumulative sum (padding adds zeros to every sum)."""
+    Many onsets at once: the left curve is fitted over ``[lo, c)`` (from the previous
+    onset), the right one over ``[c, hi)`` (to the next), for every candidate ``c`` in
+    ``[c_lo, c_hi)``; the candidates of each onset are one row of a zero-padded matrix
+    (padding adds zeros to every sum)."""
     n = y.size
     out = onsets.astype(np.float64).copy()
     c = np.round(onsets).astype(np.intp)
@@ -189,47 +212,65 @@ def _refine(
     # differences of such would swamp the fit
     ref_l = np.where(ks > 0, onsets[np.maximum(ks - 1, 0)], lo.astype(np.float64))
     ref_r = c_lo.astype(np.float64)
-    il, ml = ragged(lo, c_hi - lo)
-    ir, mr = ragged(c_lo, hi - c_lo)
-    s_l = np.cumsum(sums2(_basis(il.astype(np.float64), ref_l, tau), y[il]) * ml, axis=2)
-    s_r = np.cumsum((sums2(_basis(ir.astype(np.float64), ref_r, tau), y[ir]) * mr)[..., ::-1],
-                    axis=2)[..., ::-1]
-    cand, mc = ragged(c_lo, c_hi - c_lo)
-    pos_l = np.where(mc, cand - lo[:, None] - 1, 0)
-    pos_r = np.where(mc, cand - c_lo[:, None], 0)
-    r_l, a_l, b_l = closed_rss(np.take_along_axis(s_l, pos_l[None], axis=2))
-    r_r, a_r, b_r = closed_rss(np.take_along_axis(s_r, pos_r[None], axis=2))
-    best = np.argmin(np.where(mc, r_l + r_r, np.inf), axis=1)[:, None]
-
-    def pick(v: FloatArray) -> FloatArray:
-        return np.take_along_axis(v, best, axis=1)[:, 0]
-
-    near = np.take_along_axis(cand, best, axis=1)[:, 0].astype(np.float64)
-    out[ks] = _meet((pick(a_l), pick(b_l), ref_l), (pick(a_r), pick(b_r), ref_r), tau=tau,
-                    near=near)
+    for sl in row_chunks(c_hi - c_lo):
+        out[ks[sl]] = _refine_rows(y, (lo[sl], hi[sl], c_lo[sl], c_hi[sl]),
+                                   (ref_l[sl], ref_r[sl]), tau)
     return out
+
+
+def _refine_rows(y: FloatArray, ends: tuple[np.ndarray, ...],
+                 refs: tuple[FloatArray, FloatArray], tau: float | None) -> FloatArray:
+    """:func:`_refine` for a chunk of onsets (bounded so the matrices stay in cache).
+
+    The sums over ``[lo, c_lo)`` and ``[c_hi, hi)`` are common to all candidates of an
+    onset; only the stretch ``[c_lo, c_hi)`` needs cumulative sums (one zero-padded row per
+    onset). Left and right fits are stacked (rows ``:k`` and ``k:``) so that each step is
+    one array operation."""
+    lo, hi, c_lo, c_hi = ends
+    ref_l, ref_r = refs
+    k = lo.size
+    both = np.concatenate((ref_l, ref_r))
+    bulk = _interval_sums(y, np.concatenate((lo, c_hi)), np.concatenate((c_lo, hi)), both, tau)
+    cand, mc = ragged(c_lo, c_hi - c_lo)
+    t = cand.astype(np.float64)
+    part = sums2(_basis(np.concatenate((t, t)), both, tau), np.tile(y[cand], (2, 1)))
+    part *= np.tile(mc, (2, 1))
+    sums = np.empty_like(part)
+    sums[:, :k, 0] = 0.0
+    np.cumsum(part[:, :k, :-1], axis=2, out=sums[:, :k, 1:])  # left: over [c_lo, c)
+    np.cumsum(part[:, k:, ::-1], axis=2, out=sums[:, k:, ::-1])  # right: over [c, c_hi)
+    sums += bulk[..., None]
+    r, a, b = closed_rss(sums)
+    best = np.argmin(np.where(mc, r[:k] + r[k:], np.inf), axis=1)
+    rows = np.arange(k)
+    near = cand[rows, best].astype(np.float64)
+    return _meet((a[rows, best], b[rows, best], ref_l),
+                 (a[rows + k, best], b[rows + k, best], ref_r), tau=tau, near=near)
 
 
 def _meet(left: tuple[FloatArray, FloatArray, FloatArray],
           right: tuple[FloatArray, FloatArray, FloatArray], *, tau: float | None,
           near: FloatArray) -> FloatArray:
-    """Where each pair of left and right fitted curves crosses, within two samples of
-    ``near`` (the crossing nearest to it; ``near`` itself when they do not cross). Each
-    side is ``(a, b, ref)`` of the curve ``a + b g(t - ref)``."""
+    """Where each pair of left and right fitted curves crosses, when that is within two
+    samples before or one after ``near`` (else ``near`` itself). Each side is ``(a, b,
+    ref)`` of the curve ``a + b g(t - ref)``. Their difference is ``A + B (t - near)`` for
+    ramps and ``A + B exp(-(t - near) / tau)`` for exponentials (same tau): monotone, so
+    the crossing is in closed form."""
     a_l, b_l, ref_l = left
     a_r, b_r, ref_r = right
-    grid = near[:, None] + np.linspace(-2.0, 1.0, 31)[None, :]
-    d = (a_l[:, None] + b_l[:, None] * _basis(grid, ref_l, tau)) - (
-        a_r[:, None] + b_r[:, None] * _basis(grid, ref_r, tau))
-    sc = np.signbit(d[:, 1:]) != np.signbit(d[:, :-1])
-    dist = np.where(sc, np.abs(grid[:, :-1] - near[:, None]), np.inf)
-    i = np.argmin(dist, axis=1)[:, None]
-    a = np.take_along_axis(d, i, axis=1)[:, 0]
-    b = np.take_along_axis(d, i + 1, axis=1)[:, 0]
-    g0 = np.take_along_axis(grid, i, axis=1)[:, 0]
-    g1 = np.take_along_axis(grid, i + 1, axis=1)[:, 0]
-    frac = np.where(a != b, a / np.where(a != b, a - b, 1.0), 0.5)
-    return np.where(sc.any(axis=1), g0 + (g1 - g0) * frac, near)
+    if tau is None:
+        big_a = a_l - a_r + b_l * (near - ref_l) - b_r * (near - ref_r)
+        big_b = b_l - b_r
+        ok = big_b != 0
+        step = -big_a / np.where(ok, big_b, 1.0)
+    else:
+        big_b = (b_l * np.exp(-np.clip((near - ref_l) / tau, -50.0, 700.0))
+                 - b_r * np.exp(-np.clip((near - ref_r) / tau, -50.0, 700.0)))
+        ratio = (a_r - a_l) / np.where(big_b != 0, big_b, 1.0)
+        ok = (big_b != 0) & (ratio > 0)
+        step = -tau * np.log(np.where(ok, ratio, 1.0))
+    ok &= (step >= -2.0) & (step <= 1.0)
+    return np.asarray(np.where(ok, near + step, near))
 
 
 def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switches | None:
