@@ -193,10 +193,13 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
                       prom, sim, gateway)  # fmt: skip
             logs.append(prom.log_path)
             t0 = time.monotonic()
+            # diagnosed and sized: a stick-slip episode can be called stiction before the
+            # window holds the cycles that fd and fs are estimated from
             wait_for(
-                f"{STICKY} diagnosed with stiction, seen by Prometheus",
+                f"{STICKY} diagnosed with stiction and sized, seen by Prometheus",
                 lambda: prom.query(
-                    f'stiction_loop_verdict{{loop="{STICKY}", verdict="stiction"}} == 1'
+                    f'stiction_loop_fd_ratio{{loop="{STICKY}"}} and on (loop) '
+                    f'(stiction_loop_verdict{{loop="{STICKY}", verdict="stiction"}} == 1)'
                 )["data"]["result"],
                 STICTION_DEADLINE_S,
                 logs,
@@ -209,6 +212,16 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
                 lambda: prom.query(
                     "changes(stiction_loop_last_assessment_timestamp_seconds"
                     f'{{loop="{STICKY}"}}[1m]) >= 2'
+                )["data"]["result"],
+                30,
+                logs,
+                (sim, gateway),
+            )
+            # and the recording rules built on fd have been evaluated at least once
+            wait_for(
+                "the fd threshold recording rule for the sticky loop",
+                lambda: prom.query(
+                    f'stiction:loop_fd_threshold:ratio{{loop="{STICKY}"}}'
                 )["data"]["result"],
                 30,
                 logs,
