@@ -92,10 +92,11 @@ class Scenario:
         )
 
 
-_PERFECT = {"fs": 0.0, "fd": 0.0, "k": 1.0}
+_PERFECT: dict[str, Any] = {"fs": 0.0, "fd": 0.0, "k": 1.0}
 # The Table 6-9 loop cycles slowly (period about 2200 s at tau = 120): 4 h hold 6 cycles.
-_TABLE6_LOOP = {"kc": 2.0, "ti": 120.0, "tau": 120.0, "theta": 6.0, "fd": 0.18, "fs": 0.20,
-                "duration": 14400.0}
+_TABLE6_LOOP: dict[str, Any] = {
+    "kc": 2.0, "ti": 120.0, "tau": 120.0, "theta": 6.0, "fd": 0.18, "fs": 0.20, "duration": 14400.0,
+}
 
 SCENARIOS: dict[str, Scenario] = {
     s.name: s
@@ -161,7 +162,7 @@ def simulate(
         sc = scenario(sc)
     dur = sc.duration if duration is None else v.positive_scalar("duration", duration)
     v.non_negative("noise", noise)
-    n = int(round(dur / sc.ts))
+    n = round(dur / sc.ts)
     bank = LoopBank(1, sc.loop_params(noise), sc.valve(), ts=sc.ts, seed=seed)
     out = np.empty((5, n))
     for i in range(n):

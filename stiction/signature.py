@@ -29,7 +29,8 @@ def pressure_ramp(
     period = 2.0 * top / rate
     t = np.arange(0.0, cyc * period + step / 2, step)
     phase = np.mod(t, period)
-    return np.where(phase <= period / 2, rate * phase, 2 * top - rate * phase)
+    out: FloatArray = np.where(phase <= period / 2, rate * phase, 2 * top - rate * phase)
+    return out
 
 
 @dataclasses.dataclass(frozen=True)

@@ -168,7 +168,8 @@ class LoopBank:
         raw = self.x0 + self.kc * (e + integral)
         op = np.clip(raw, self.op_lo, self.op_hi)
         saturated = raw != op
-        self.integral = np.where(saturated & (np.sign(e) == np.sign(raw - op)), self.integral, integral)
+        winding_up = saturated & (np.sign(e) == np.sign(raw - op))
+        self.integral = np.where(winding_up, self.integral, integral)
         self.valve_state = self.valve.step(self.valve_state, op)
         vp = self.valve.position(self.valve_state)
         load = np.where(

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import NamedTuple, Protocol, TypeVar
+from typing import NamedTuple, Protocol, TypeVar, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -94,10 +94,11 @@ class HeValve:
         return HeState(np.array(u0, dtype=np.float64, copy=True))
 
     def step(self, state: HeState, u: ArrayLike) -> HeState:
+        fs, fd, k = cast(FloatArray, self.fs), cast(FloatArray, self.fd), cast(FloatArray, self.k)
         x = state.x
         e = np.asarray(u, dtype=np.float64) - x
-        slip = np.abs(e) > self.fs
-        moved = x + self.k * (e - np.sign(e) * self.fd)
+        slip = np.abs(e) > fs
+        moved = x + k * (e - np.sign(e) * fd)
         return HeState(np.where(slip, moved, x))
 
     def position(self, state: HeState) -> FloatArray:
@@ -222,8 +223,9 @@ class PhysicalValve:
             idx = np.flatnonzero(moving)
             xi, vi, fi, si = x[idx], vel[idx], fa[idx], s[idx]
             k1x, k1v = vi, self._accel(xi, vi, fi, si)
-            k2x, k2v = vi + 0.5 * h * k1v, self._accel(xi + 0.5 * h * k1x, vi + 0.5 * h * k1v, fi, si)
-            k3x, k3v = vi + 0.5 * h * k2v, self._accel(xi + 0.5 * h * k2x, vi + 0.5 * h * k2v, fi, si)
+            hh = 0.5 * h
+            k2x, k2v = vi + hh * k1v, self._accel(xi + hh * k1x, vi + hh * k1v, fi, si)
+            k3x, k3v = vi + hh * k2v, self._accel(xi + hh * k2x, vi + hh * k2v, fi, si)
             k4x, k4v = vi + h * k3v, self._accel(xi + h * k3x, vi + h * k3v, fi, si)
             xn = xi + h / 6.0 * (k1x + 2 * k2x + 2 * k3x + k4x)
             vn = vi + h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v)
@@ -295,10 +297,11 @@ class ChoudhuryValve:
         u_stuck = np.where(newly, state.u_prev, state.u_stuck)
         stuck_dir = np.where(newly, state.direction, state.stuck_direction)
         same_way = (d == stuck_dir) & (d != 0)
+        s_, j_ = cast(FloatArray, self.s), cast(FloatArray, self.j)
         gap = np.abs(u - u_stuck)
-        slips = stuck & (d != 0) & np.where(same_way, gap > self.j, gap > self.s)
+        slips = stuck & (d != 0) & np.where(same_way, gap > j_, gap > s_)
         free = ~stuck | slips
-        x = np.where(free, u - d * (self.s - self.j) / 2.0, state.x)
+        x = np.where(free, u - d * (s_ - j_) / 2.0, state.x)
         return ChoudhuryState(x, u.copy(), d, stuck & ~slips, u_stuck, stuck_dir)
 
 
@@ -350,9 +353,10 @@ class KanoValve:
         stuck = state.stuck | stops
         u_stuck = np.where(stops, state.u_prev, state.u_stuck)
         d = np.where(stops, -d, d)
-        reverse = stuck & (d * (u - u_stuck) > self.s)
-        onward = stuck & ~reverse & (-d * (u - u_stuck) > self.j)
+        s_, j_ = cast(FloatArray, self.s), cast(FloatArray, self.j)
+        reverse = stuck & (d * (u - u_stuck) > s_)
+        onward = stuck & ~reverse & (-d * (u - u_stuck) > j_)
         d = np.where(onward, -d, d)
         free = ~stuck | reverse | onward
-        x = np.where(free, u - d * (self.s - self.j) / 2.0, state.x)
+        x = np.where(free, u - d * (s_ - j_) / 2.0, state.x)
         return KanoState(x, u.copy(), d, stuck & ~free, u_stuck)
