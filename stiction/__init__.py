@@ -6,6 +6,7 @@ Method: He, Pottmann & Qin (2007) for detection, He & Wang (2014) for quantifica
 
 from __future__ import annotations
 
+from ._analyze import analyze
 from ._assessment import Assessment, Verdict
 from ._errors import ParameterError, StictionError
 from .valves import (
@@ -29,6 +30,7 @@ __all__ = [
     "StictionError",
     "ValveModel",
     "Verdict",
+    "analyze",
     "k_from_physical",
 ]
 

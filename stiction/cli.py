@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -14,7 +15,13 @@ from typing import Any
 
 import numpy as np
 
+from ._analyze import Details, analyze_details
 from ._errors import ParameterError, StictionError
+from ._switching import fitted_curve
+from .reproduce import mean, qualifying_errors, reproduce
+from .scenarios import SCENARIOS, scenario, simulate
+from .signature import valve_signature
+from .valves import HeValve
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -33,8 +40,6 @@ _SIM_PARAMS = ("fs", "fd", "k", "kc", "ti", "kp", "tau", "theta", "ts", "sp_step
 
 
 def _add_simulate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from .scenarios import SCENARIOS
-
     p = sub.add_parser(
         "simulate",
         help="simulate a named closed-loop scenario and write t, sp, op, pv, vp as CSV",
@@ -53,8 +58,6 @@ def _add_simulate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from .scenarios import scenario, simulate
-
     overrides = {k: getattr(args, k) for k in _SIM_PARAMS if getattr(args, k) is not None}
     sc = scenario(args.scenario, **overrides)
     res = simulate(sc, duration=args.duration, noise=args.noise, seed=args.seed)
@@ -86,8 +89,6 @@ def _add_signature(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
 
 
 def _cmd_signature(args: argparse.Namespace) -> int:
-    from .signature import valve_signature
-
     sig = valve_signature()
     jumps_p = int(np.count_nonzero(np.abs(np.diff(sig.x_physical)) > 1e-6))
     jumps_s = int(np.count_nonzero(np.abs(np.diff(sig.x_semiphysical)) > 1e-6))
@@ -114,20 +115,201 @@ def _cmd_signature(args: argparse.Namespace) -> int:
 
 
 def _pyplot() -> Any:
-    try:
-        import matplotlib
+    try:  # optional dependency (the plot extra): imported only when a plot is asked for
+        import matplotlib  # noqa: PLC0415
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # noqa: PLC0415
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise UsageError("--plot needs matplotlib: pip install 'stiction-gateway[plot]'") from exc
     return plt
+
+
+# ------------------------------------------------------------------------------- analyze
+def _add_analyze(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "analyze",
+        help="assess one CSV window of OP/PV: oscillation, stiction (SI), fd and fs",
+        description="Reads OP and PV (and time) columns of a CSV file with a header row and "
+        "prints the assessment. Empty or 'nan' cells are missing samples.",
+    )
+    p.add_argument("file", type=Path, help="CSV file with a header row")
+    p.add_argument("--op", default="op", help="OP column (default op)")
+    p.add_argument("--pv", default="pv", help="PV column (default pv)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--time", default=None, help="time column, s (default t)")
+    g.add_argument("--ts", type=float, default=None, help="sample time, s (no time column)")
+    p.add_argument("--kp", type=float, default=None, help="process gain, PV units per OP unit")
+    p.add_argument("--delay", type=float, default=0.0, help="process dead time, s")
+    p.add_argument("--process", choices=("self-regulating", "integrating"),
+                   default="self-regulating")
+    p.add_argument("--op-range", dest="op_range", nargs=2, type=float, metavar=("LO", "HI"),
+                   default=(0.0, 100.0), help="OP at 0 %% and 100 %% valve span (default 0 100)")
+    p.add_argument("--json", action="store_true", help="print the assessment as one JSON object")
+    p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to FILE.png")
+    p.set_defaults(handler=_cmd_analyze)
+
+
+def _read_columns(path: Path, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """Numeric columns ``names`` of a CSV file; empty and 'nan' cells become NaN."""
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+    except FileNotFoundError:
+        raise UsageError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"cannot read {path}: {exc}") from exc
+    if not rows:
+        raise UsageError(f"{path}: empty file (need a header row)")
+    header = [h.strip() for h in rows[0]]
+    out: dict[str, np.ndarray] = {}
+    for name in names:
+        if name not in header:
+            raise UsageError(f"{path}: no column {name!r} (columns: {', '.join(header)})")
+        col = header.index(name)
+        vals = np.empty(len(rows) - 1)
+        for i, row in enumerate(rows[1:]):
+            cell = row[col].strip() if col < len(row) else ""
+            try:
+                vals[i] = float(cell) if cell else np.nan
+            except ValueError:
+                raise UsageError(f"{path}: line {i + 2}, column {name!r}: not a number: "
+                                 f"{cell!r}") from None
+        out[name] = vals
+    return out
+
+
+def _cmd_analyze(args: argparse.Namespace) -> int:
+    time_col = args.time if args.time is not None else ("t" if args.ts is None else None)
+    names = [args.op, args.pv] + ([time_col] if time_col else [])
+    try:
+        cols = _read_columns(args.file, names)
+    except UsageError as exc:
+        if time_col == "t" and args.time is None and "no column 't'" in str(exc):
+            raise UsageError(f"{exc}; give --time COL or --ts S") from None
+        raise
+    op, pv = cols[args.op], cols[args.pv]
+    if op.size < 2:
+        raise UsageError(f"{args.file}: {op.size} samples, need at least 2")
+    if time_col:
+        t = cols[time_col]
+        if not np.all(np.isfinite(t)):
+            raise UsageError(f"{args.file}: column {time_col!r} has missing times")
+        bad = np.flatnonzero(np.diff(t) <= 0)
+        if bad.size:
+            raise UsageError(f"{args.file}: time not increasing at line {int(bad[0]) + 3} "
+                             f"({t[bad[0]]:g} -> {t[bad[0] + 1]:g})")
+        ts = float(np.median(np.diff(t)))
+    else:
+        ts = args.ts
+    d = analyze_details(op, pv, ts=ts, kp=args.kp, delay=args.delay, process=args.process,
+                        op_range=tuple(args.op_range))
+    a = d.assessment
+    if args.json:
+        print(json.dumps(a.to_dict()))
+    else:
+        print(f"verdict: {a.verdict}")
+        print(f"reason:  {a.reason}")
+        for key, val in a.to_dict().items():
+            if key not in {"verdict", "reason", "warnings"} and val is not None:
+                print(f"  {key}: {val:.4g}" if isinstance(val, float) else f"  {key}: {val}")
+        for w in a.warnings:
+            print(f"  warning: {w}")
+    if args.plot is not None:
+        _plot_analysis(args.plot, d, ts, tuple(args.op_range))
+        if not args.json:
+            print(f"wrote {args.plot}")
+    return 0
+
+
+def _plot_analysis(path: Path, d: Details, ts: float, op_range: tuple[float, float]) -> None:
+    plt = _pyplot()
+    a = d.assessment
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    if d.op is None or d.pv is None:
+        fig.suptitle(f"{a.verdict}: {a.reason}", fontsize=9)
+        fig.savefig(path, dpi=90)
+        return
+    op, pv = d.op, d.pv
+    t = np.arange(op.size) * ts
+    ax1.plot(t, op, lw=1, label="OP")
+    ax2.plot(t, pv, lw=1, label="PV")
+    q = d.quantification
+    if q is not None and q.switches is not None:
+        sw = q.switches
+        ax2.plot(t, fitted_curve(sw, pv.size), "r--", lw=1, label="fitted PV")
+        ax2.plot(sw.onsets * ts, np.interp(sw.onsets, np.arange(pv.size), pv), "kv",
+                 label="switching points")
+        if q.jump_times is not None:
+            ax1.plot(q.jump_times * ts, np.interp(q.jump_times, np.arange(op.size), op),
+                     "kv", label="valve jumps")
+        if q.fs_op is not None and q.fd_op is not None and q.fs_op >= q.fd_op:
+            lo, hi = op_range
+            span = hi - lo
+            # scaled by 0.9 as the paper does (section 4.2) so that cycle-to-cycle
+            # variability does not leave the rebuilt valve stuck
+            valve = HeValve(0.9 * q.fs_op / span, 0.9 * q.fd_op / span, 1.99)
+            u = (op - lo) / span
+            st = valve.initial_state(u[0])
+            vp = np.empty(u.size)
+            for i, ui in enumerate(u):
+                st = valve.step(st, ui)
+                vp[i] = float(valve.position(st)[()])
+            ax1.plot(t, lo + vp * span, lw=1, label="estimated VP")
+    ax1.legend(loc="upper right", fontsize=8)
+    ax2.legend(loc="upper right", fontsize=8)
+    ax2.set_xlabel("t, s")
+    fig.suptitle(f"{a.verdict}: {a.reason}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
+# ----------------------------------------------------------------------------- reproduce
+def _add_reproduce(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "reproduce",
+        help="run every case of He & Wang (2014) Tables 4-9 and compare with the paper",
+        description="Simulates each case at its default duration, analyses it and prints the "
+        "paper's fd, fs (error %%) beside ours, with SI and our verdict.",
+    )
+    p.add_argument("--noise", type=float, default=0.0, help="PV noise SD, PV units (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.set_defaults(handler=_cmd_reproduce)
+
+
+def _fmt(v: float | None, err: float | None) -> str:
+    return "     -        " if v is None or err is None else f"{v:.3f} ({err:5.1f}%)"
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    if not np.isfinite(args.noise) or args.noise < 0:
+        raise ParameterError("noise", f"must be >= 0, was {args.noise!r}")
+    rows = reproduce(noise=args.noise, seed=args.seed)
+    print(f"He & Wang (2014) Tables 4-9, PV noise SD {args.noise:g}, seed {args.seed}")
+    print(f"{'table':>5} {'case':<20} {'paper fd':>14} {'our fd':>14} {'paper fs':>14} "
+          f"{'our fs':>14} {'paper SI':>8} {'our SI':>6}  verdict")
+    for r in rows:
+        p = r.paper
+        si = "-" if r.assessment.stiction_index is None else f"{r.assessment.stiction_index:.2f}"
+        psi = "" if p.si is None else f"{p.si:.2f} {p.verdict}"
+        mj = " (multi-jump)" if r.multi_jump else ""
+        print(f"{p.table:>5} {p.case:<20} {_fmt(p.fd, p.fd_err):>14} {_fmt(r.fd, r.fd_err):>14} "
+              f"{_fmt(p.fs, p.fs_err):>14} {_fmt(r.fs, r.fs_err):>14} {psi:>8} {si:>6}  "
+              f"{r.assessment.verdict}{mj}")
+    paper, ours = qualifying_errors(rows)
+    worse = sum(o >= 5.0 for o in ours)
+    print(f"\nover the {len(paper)} fd/fs estimates where the paper's error is under 5 %: "
+          f"mean abs error paper {mean(paper):.2f} %, ours {mean(ours):.2f} %; "
+          f"ours >= 5 % on {worse}")
+    return 0
 
 
 # ---------------------------------------------------------------------------------- main
 _COMMANDS: list[Callable[[argparse._SubParsersAction[argparse.ArgumentParser]], None]] = [
     _add_simulate,
     _add_signature,
+    _add_analyze,
+    _add_reproduce,
 ]
 
 

@@ -1,0 +1,157 @@
+"""Data-quality gates: is a window of OP/PV fit for analysis?
+
+Each gate either passes (possibly with a warning) or returns the reason the window is
+``bad_data``. Gaps: non-finite samples (NaN, +-inf, e.g. the gateway's missed polls) are
+**interpolated linearly** when they are few and short - at most ``MAX_MISSING_FRACTION`` of
+the window in total and no run longer than ``max(MIN_GAP_LIMIT, n * MAX_GAP_FRACTION)``
+samples; leading and trailing gaps are trimmed instead. A window with more or longer gaps is
+judged ``bad_data`` ("too gappy"): interpolating across a longer gap would invent a ramp
+that the stiction detector reads as a triangle.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ._validate import FloatArray
+
+__all__ = ["MIN_SAMPLES", "Cleaned", "check_quality"]
+
+MIN_SAMPLES = 32
+"""Fewer samples than this cannot hold the several cycles the method needs."""
+MAX_MISSING_FRACTION = 0.10
+MAX_GAP_FRACTION = 0.02
+MIN_GAP_LIMIT = 5
+SATURATION_BAND = 0.005  # fraction of the OP range counted as "at a limit"
+MAX_SATURATED_FRACTION = 0.20
+MAX_FROZEN_FRACTION = 0.50  # longest run of identical values, fraction of the window
+MIN_LEVELS = 10  # distinct PV levels over its range below which PV is "quantised"
+WARN_LEVELS = 40
+
+
+@dataclasses.dataclass(frozen=True)
+class Cleaned:
+    """The outcome of the gates: ``reason`` is None when the window passed."""
+
+    op: FloatArray
+    pv: FloatArray
+    reason: str | None
+    warnings: tuple[str, ...] = ()
+    start: int = 0  # index of op[0] in the caller's window (leading gap trimmed)
+
+
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start indices and lengths of the runs of True in a boolean array."""
+    m = np.concatenate(([False], mask, [False])).astype(np.int8)
+    d = np.diff(m)
+    starts = np.flatnonzero(d == 1)
+    ends = np.flatnonzero(d == -1)
+    return starts, ends - starts
+
+
+def _longest_constant_run(x: FloatArray) -> int:
+    same = np.diff(x) == 0
+    if not same.any():
+        return 1
+    _, lengths = _runs(same)
+    return int(lengths.max()) + 1
+
+
+def _levels(x: FloatArray) -> float:
+    """How many resolution steps the signal's range spans (inf for unquantised data)."""
+    steps = np.abs(np.diff(x))
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        return 0.0
+    span = float(np.ptp(x))
+    # the quantum: a low percentile of the non-zero steps, robust to a few odd samples
+    q = float(np.percentile(steps, 5))
+    # unquantised data has steps of every size; only call it a quantum if steps are
+    # (nearly) multiples of it
+    ratio = steps / q
+    if np.median(np.abs(ratio - np.round(ratio))) > 0.05:
+        return float("inf")
+    return span / q
+
+
+def _fill_gaps(name: str, x: FloatArray, bad: np.ndarray) -> FloatArray:
+    idx = np.arange(x.size)
+    return np.interp(idx, idx[~bad], x[~bad]) if bad.any() else x
+
+
+def check_quality(
+    op: FloatArray, pv: FloatArray, op_range: tuple[float, float]
+) -> Cleaned:
+    """Run every gate on ``op``, ``pv`` (equal-length 1-D float arrays)."""
+    n = op.size
+    warnings: list[str] = []
+
+    def bad(reason: str) -> Cleaned:
+        return Cleaned(op, pv, reason, tuple(warnings))
+
+    if n < MIN_SAMPLES:
+        return bad(f"window too short: {n} samples, need at least {MIN_SAMPLES}")
+
+    # -- gaps
+    missing = ~(np.isfinite(op) & np.isfinite(pv))
+    n_missing = int(missing.sum())
+    start = 0
+    if n_missing:
+        if n_missing == n:
+            return bad("no finite samples in the window")
+        good = np.flatnonzero(~missing)
+        start, stop = int(good[0]), int(good[-1]) + 1
+        trimmed = start + (n - stop)
+        op, pv, missing = op[start:stop], pv[start:stop], missing[start:stop]
+        if n_missing / n > MAX_MISSING_FRACTION:
+            return bad(f"too gappy: {n_missing} of {n} samples missing "
+                       f"(limit {MAX_MISSING_FRACTION:.0%})")
+        _, lengths = _runs(missing)
+        limit = max(MIN_GAP_LIMIT, int(n * MAX_GAP_FRACTION))
+        if lengths.size and int(lengths.max()) > limit:
+            return bad(f"too gappy: a gap of {int(lengths.max())} samples "
+                       f"(limit {limit} samples)")
+        interpolated = int(missing.sum())
+        op = _fill_gaps("op", op, missing)
+        pv = _fill_gaps("pv", pv, missing)
+        parts = []
+        if interpolated:
+            parts.append(f"interpolated {interpolated} missing samples")
+        if trimmed:
+            parts.append(f"trimmed {trimmed} missing samples at the ends")
+        warnings.append("; ".join(parts))
+        if op.size < MIN_SAMPLES:
+            return bad(f"window too short: {op.size} finite samples, need at least "
+                       f"{MIN_SAMPLES}")
+
+    # -- flat or frozen
+    for name, x in (("OP", op), ("PV", pv)):
+        if float(np.ptp(x)) <= 1e-9 * max(1.0, float(np.max(np.abs(x)))):
+            return bad(f"{name} is constant (flat signal: loop in manual or tag frozen?)")
+        run = _longest_constant_run(x)
+        if run > MAX_FROZEN_FRACTION * x.size:
+            return bad(f"{name} frozen: {run} consecutive identical samples "
+                       f"({run / x.size:.0%} of the window)")
+
+    # -- saturated OP
+    lo, hi = op_range
+    band = SATURATION_BAND * (hi - lo)
+    at_limit = (op <= lo + band) | (op >= hi - band)
+    frac = float(at_limit.mean())
+    if frac > MAX_SATURATED_FRACTION:
+        return bad(f"OP saturated: {frac:.0%} of samples at the OP range limits "
+                   f"{lo:g}/{hi:g}")
+    if frac > 0.02:
+        warnings.append(f"OP at its range limits for {frac:.0%} of the window")
+
+    # -- quantised PV
+    levels = _levels(pv)
+    if levels < MIN_LEVELS:
+        return bad(f"PV quantised: its range spans only {levels:.0f} resolution steps "
+                   f"(need {MIN_LEVELS})")
+    if levels < WARN_LEVELS:
+        warnings.append(f"PV coarsely quantised ({levels:.0f} steps over its range)")
+
+    return Cleaned(op, pv, None, tuple(warnings), start)

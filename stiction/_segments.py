@@ -1,0 +1,60 @@
+"""Least-squares fits of many intervals at once, by prefix sums.
+
+For a basis ``X`` (n x p, p <= 3) and data ``y``, the normal equations of the fit of ``y``
+on ``X`` over any interval ``[i, j)`` follow from cumulative sums of ``X_a X_b``, ``X_a y``
+and ``y^2``; so the residual sum of squares of thousands of candidate intervals (all split
+points of a change-point search) costs one pass over the data plus a batch of p x p solves.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ._validate import FloatArray
+
+__all__ = ["Prefix", "exp_basis", "prefix", "rss"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Prefix:
+    xx: FloatArray  # (n + 1, p, p)
+    xy: FloatArray  # (n + 1, p)
+    yy: FloatArray  # (n + 1,)
+
+
+def prefix(x: FloatArray, y: FloatArray) -> Prefix:
+    """Prefix sums for the basis ``x`` (n x p) and data ``y`` (n)."""
+    n, p = x.shape
+    xx = np.zeros((n + 1, p, p))
+    np.cumsum(x[:, :, None] * x[:, None, :], axis=0, out=xx[1:])
+    xy = np.zeros((n + 1, p))
+    np.cumsum(x * y[:, None], axis=0, out=xy[1:])
+    yy = np.zeros(n + 1)
+    np.cumsum(y * y, out=yy[1:])
+    return Prefix(xx, xy, yy)
+
+
+def rss(pre: Prefix, i: np.ndarray, j: np.ndarray) -> tuple[FloatArray, FloatArray]:
+    """Residual sum of squares and coefficients of the fit over each ``[i[k], j[k])``.
+
+    A tiny ridge keeps degenerate intervals (a basis column that is constant there)
+    solvable; their fit is then the minimum-norm one.
+    """
+    a = pre.xx[j] - pre.xx[i]
+    b = pre.xy[j] - pre.xy[i]
+    c = pre.yy[j] - pre.yy[i]
+    p = a.shape[-1]
+    scale = np.trace(a, axis1=-2, axis2=-1) / p
+    ridge = (1e-10 * scale + 1e-300)[:, None, None] * np.eye(p)
+    coef = np.linalg.solve(a + ridge, b[..., None])[..., 0]
+    r = c - np.einsum("kp,kp->k", coef, b)
+    return np.maximum(r, 0.0), coef
+
+
+def exp_basis(t: FloatArray, t0: float, tau: float | None) -> FloatArray:
+    """Columns (1, exp(-(t - t0)/tau)) of a first-order response after a step at ``t0``;
+    ``tau=None`` gives (1, t - t0), the ramp of an integrating process."""
+    g = t - t0 if tau is None else np.exp(-np.clip((t - t0) / tau, -50.0, 700.0))
+    return np.column_stack((np.ones_like(t), g))
