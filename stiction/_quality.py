@@ -76,7 +76,7 @@ def _levels(x: FloatArray) -> float:
     return span / q
 
 
-def _fill_gaps(name: str, x: FloatArray, bad: np.ndarray) -> FloatArray:
+def _fill_gaps(x: FloatArray, bad: np.ndarray) -> FloatArray:
     idx = np.arange(x.size)
     return np.interp(idx, idx[~bad], x[~bad]) if bad.any() else x
 
@@ -114,8 +114,8 @@ def check_quality(
             return bad(f"too gappy: a gap of {int(lengths.max())} samples "
                        f"(limit {limit} samples)")
         interpolated = int(missing.sum())
-        op = _fill_gaps("op", op, missing)
-        pv = _fill_gaps("pv", pv, missing)
+        op = _fill_gaps(op, missing)
+        pv = _fill_gaps(pv, missing)
         parts = []
         if interpolated:
             parts.append(f"interpolated {interpolated} missing samples")

@@ -28,9 +28,11 @@ subtracted from fs and K r/2 from J (r from a straight line through the last six
 before each jump); fd = fs - J/K is unaffected.
 
 Multi-jump check (Figure 7): a half cycle in which the valve jumps twice does not follow a
-single exponential (or ramp); we flag half cycles whose fit residual RMS exceeds both three
-times the PV noise SD and 5 % of the PV swing, and any two consecutive jumps in the same
-direction (a missed switch). More than a quarter of flagged half cycles sets ``multi_jump``.
+single exponential (or ramp). We flag a half cycle when splitting it in two curves (same
+tau) is significant (F > 25) and the step at the split goes the same way as the half cycle's
+jump and is at least a quarter of a typical jump; or when its fit residual RMS exceeds both
+three times the PV noise SD and 5 % of the PV swing; or when two consecutive jumps go the
+same way (a missed switch). More than a quarter of flagged half cycles sets ``multi_jump``.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ import numpy as np
 from scipy import stats
 
 from ._detect import noise_sd
+from ._segments import closed_rss
 from ._switching import Switches, find_switches
 from ._validate import FloatArray
 
@@ -50,6 +53,8 @@ TRIM = 0.1
 RESID_NOISE_FACTOR = 3.0
 RESID_SWING_FRACTION = 0.05
 MULTI_JUMP_FRACTION = 0.25
+F_SPLIT = 25.0
+SECOND_STEP_FRACTION = 0.25
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,6 +85,44 @@ def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
     t = np.arange(-5, 1) + 2.5
     slope = (seg - seg.mean(axis=1, keepdims=True)) @ t / float(t @ t)
     return 0.5 * float(np.mean(np.abs(slope)))
+
+
+def _second_step(
+    y: FloatArray, i: int, j: int, tau: float | None, *, margin: int
+) -> float | None:
+    """Is there a second valve jump inside the half cycle ``y[i:j]``?
+
+    Compares the one-curve fit with the best two-curve fit (same tau, split anywhere at
+    least ``margin`` samples from the ends): when the split is significant (F > F_SPLIT)
+    returns the change of the steady state (self-regulating) or slope (integrating) at the
+    split, else None. Sums over the left pieces are prefix sums and over the right pieces
+    suffix sums, so neither suffers cancellation; the basis is referenced to the middle of
+    the half cycle (a scale factor, which the 2-parameter fit does not see).
+    """
+    n = j - i
+    if n < 2 * margin + 8:
+        return None
+    t = np.arange(n, dtype=np.float64) - n / 2.0
+    g = t if tau is None else np.exp(np.clip(-t / tau, -300.0, 300.0))
+    yy = y[i:j] - float(np.mean(y[i:j]))
+    cols = np.stack((np.ones(n), g, g * g, yy, yy * g, yy * yy))
+    pre = np.cumsum(cols, axis=1)  # sums over [0, c]
+    suf = np.cumsum(cols[:, ::-1], axis=1)[:, ::-1]  # sums over [c, n)
+    c = np.arange(margin, n - margin)
+    left = pre[:, c - 1]
+    right = suf[:, c]
+    r_left, a_left, b_left = closed_rss(left)
+    r_right, a_right, b_right = closed_rss(right)
+    r_one, _, _ = closed_rss(pre[:, -1:])
+    two = r_left + r_right
+    k = int(np.argmin(two))
+    rss2 = float(two[k])
+    f = (float(r_one[0]) - rss2) / 2.0 / max(rss2 / (n - 4), 1e-300)
+    if f < F_SPLIT:
+        return None
+    if tau is None:
+        return float(b_right[k] - b_left[k])
+    return float(a_right[k] - a_left[k])
 
 
 def quantify(
@@ -116,6 +159,16 @@ def quantify(
     swing_pv = float(np.percentile(pv, 95) - np.percentile(pv, 5))
     rms = np.sqrt(sw.rss / np.maximum(sw.count, 1.0))
     bad_fit = rms > np.maximum(RESID_NOISE_FACTOR * sigma, RESID_SWING_FRACTION * swing_pv)
+    if dj.size:
+        typical = float(np.median(np.abs(dj)))
+        for s_idx in range(sw.a.size):
+            i = int(np.floor(sw.onsets[s_idx])) + 1
+            j = int(np.floor(sw.onsets[s_idx + 1])) + 1
+            step = _second_step(pv, i, j, sw.tau, margin=max(5, int(0.02 * period)))
+            main = dj[s_idx - 1] if s_idx >= 1 else (dj[0] * -1.0)
+            if step is not None and np.sign(step) == np.sign(main) \
+                    and abs(step) >= SECOND_STEP_FRACTION * typical:
+                bad_fit[s_idx] = True
     same_dir = np.zeros(sw.a.size, dtype=bool)
     if dj.size >= 2:
         same = np.sign(dj[1:]) == np.sign(dj[:-1])

@@ -14,7 +14,7 @@ import numpy as np
 
 from ._validate import FloatArray
 
-__all__ = ["Prefix", "exp_basis", "prefix", "rss"]
+__all__ = ["Prefix", "closed_rss", "exp_basis", "prefix", "rss", "sums2"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,3 +58,21 @@ def exp_basis(t: FloatArray, t0: float, tau: float | None) -> FloatArray:
     ``tau=None`` gives (1, t - t0), the ramp of an integrating process."""
     g = t - t0 if tau is None else np.exp(-np.clip((t - t0) / tau, -50.0, 700.0))
     return np.column_stack((np.ones_like(t), g))
+
+
+def sums2(g: FloatArray, y: FloatArray) -> FloatArray:
+    """Rows (1, g, g^2, y, y g, y^2) of a two-column fit ``y ~ a + b g``, for cumsums."""
+    return np.stack((np.ones_like(g), g, g * g, y, y * g, y * y))
+
+
+def closed_rss(s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """RSS and (a, b) of ``y ~ a + b g`` from the sums (n, Sg, Sgg, Sy, Syg, Syy) along
+    axis 0; a degenerate ``g`` (constant over the interval) falls back to ``y ~ a``."""
+    n, sg, sgg, sy, syg, syy = s
+    det = n * sgg - sg * sg
+    ok = det > 1e-12 * np.maximum(n * sgg, 1e-300)
+    d = np.where(ok, det, 1.0)
+    b = np.where(ok, (n * syg - sg * sy) / d, 0.0)
+    a = (sy - b * sg) / np.maximum(n, 1.0)
+    r = syy - a * sy - b * syg
+    return np.maximum(r, 0.0), a, b

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from scipy import optimize, signal
 
-from ._segments import exp_basis, prefix, rss
+from ._segments import closed_rss, exp_basis, sums2
 from ._smooth import smooth
 from ._validate import FloatArray
 
@@ -108,21 +108,14 @@ def _segment_sums(
     y: FloatArray, bounds: np.ndarray, refs: FloatArray, tau: float | None
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Fit a + b g on each [bounds[k,0], bounds[k,1]); returns a, b, rss, count."""
-    n_seg = bounds.shape[0]
-    a = np.empty(n_seg)
-    b = np.empty(n_seg)
-    r = np.empty(n_seg)
-    cnt = np.empty(n_seg)
-    for k in range(n_seg):
-        i, j = int(bounds[k, 0]), int(bounds[k, 1])
-        t = np.arange(i, j, dtype=np.float64)
-        x = exp_basis(t, float(refs[k]), tau)
-        coef, *_ = np.linalg.lstsq(x, y[i:j], rcond=None)
-        res = y[i:j] - x @ coef
-        a[k], b[k] = coef
-        r[k] = float(res @ res)
-        cnt[k] = j - i
-    return a, b, r, cnt
+    idx = np.concatenate([np.arange(i, j) for i, j in bounds])
+    seg = np.repeat(np.arange(bounds.shape[0]), bounds[:, 1] - bounds[:, 0])
+    starts = np.concatenate(([0], np.cumsum(bounds[:, 1] - bounds[:, 0])[:-1]))
+    t_rel = idx - refs[seg]
+    g = t_rel if tau is None else np.exp(-np.clip(t_rel / tau, -50.0, 700.0))
+    sums = np.add.reduceat(sums2(g, y[idx]), starts, axis=1)
+    r, a, b = closed_rss(sums)
+    return a, b, r, sums[0]
 
 
 def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float) -> float:
@@ -173,26 +166,29 @@ def _refine(
         c_lo, c_hi = max(lo + 3, c - reach), min(hi - 3, c + reach)
         if c_hi <= c_lo:
             continue
-        # separate prefix sums left and right of the candidates: an exponential basis
-        # evaluated before its reference time grows huge and would swamp the sums
+        # left sums are prefix sums from ``lo``, right sums suffix sums to ``hi``: an
+        # exponential basis evaluated before its reference time grows huge, and sums of
+        # differences of such would swamp the fit
         ref_l = float(onsets[k - 1]) if k > 0 else float(lo)
+        cands = np.arange(c_lo, c_hi)
         t_l = np.arange(lo, c_hi, dtype=np.float64)
         t_r = np.arange(c_lo, hi, dtype=np.float64)
-        pre_l = prefix(exp_basis(t_l, ref_l, tau), y[lo:c_hi])
-        pre_r = prefix(exp_basis(t_r, float(c_lo), tau), y[c_lo:hi])
-        cands = np.arange(c_lo, c_hi)
-        r_l, coef_l = rss(pre_l, np.zeros_like(cands), cands - lo)
-        r_r, coef_r = rss(pre_r, cands - c_lo, np.full_like(cands, hi - c_lo))
+        s_l = np.cumsum(sums2(exp_basis(t_l, ref_l, tau)[:, 1], y[lo:c_hi]), axis=1)
+        s_r = np.cumsum(sums2(exp_basis(t_r, float(c_lo), tau)[:, 1], y[c_lo:hi])[:, ::-1],
+                        axis=1)[:, ::-1]
+        r_l, a_l, b_l = closed_rss(s_l[:, cands - lo - 1])
+        r_r, a_r, b_r = closed_rss(s_r[:, cands - c_lo])
         best = int(np.argmin(r_l + r_r))
         cb = int(cands[best])
-        out[k] = _meet(coef_l[best], ref_l, coef_r[best], float(c_lo), tau=tau, near=float(cb))
+        out[k] = _meet(np.array([a_l[best], b_l[best]]), ref_l,
+                       np.array([a_r[best], b_r[best]]), float(c_lo), tau=tau, near=float(cb))
     return out
 
 
 def _meet(cl: FloatArray, ref_l: float, cr: FloatArray, ref_r: float, *, tau: float | None,
           near: float) -> float:
     """Where the left and right fitted curves cross, within two samples of ``near``."""
-    grid = near + np.linspace(-2.0, 1.0, 301)
+    grid = near + np.linspace(-2.0, 1.0, 31)
     fl = exp_basis(grid, ref_l, tau) @ cl
     fr = exp_basis(grid, ref_r, tau) @ cr
     d = fl - fr

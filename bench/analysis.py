@@ -1,0 +1,49 @@
+"""Speed of ``stiction.analyze``: median time on a 3600-sample window at Ts 1 s (target
+under 5 ms) and its growth with the window length (should be about linear)."""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+from stiction import analyze
+from stiction.scenarios import simulate
+
+TARGET_MS = 5.0
+
+
+def _median_ms(op: np.ndarray, pv: np.ndarray, repeat: int, **kw: float) -> float:
+    analyze(op, pv, ts=1.0, **kw)  # warm-up
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        analyze(op, pv, ts=1.0, **kw)
+        times.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(times)
+
+
+def main() -> None:
+    print("== analyze() speed ==")
+    cases = [
+        ("stiction, sized (table4-case2)", "table4-case2", {"kp": 1.0}),
+        ("stiction, sized (table5-case2, integrating)", "table5-case2", {"kp": 0.2}),
+        ("no stiction (disturbance)", "disturbance", {"kp": 1.0}),
+        ("not oscillating (healthy)", "healthy", {"kp": 1.0}),
+    ]
+    for label, name, kw in cases:
+        res = simulate(name, duration=14400.0, noise=0.05, seed=1)
+        proc = {"process": "integrating"} if name.startswith("table5") else {}
+        a = analyze(res.op[:3600], res.pv[:3600], ts=1.0, **kw, **proc)  # type: ignore[arg-type]
+        ms = {n: _median_ms(res.op[:n], res.pv[:n], 21 if n <= 3600 else 7, **kw, **proc)
+              for n in (1800, 3600, 7200, 14400)}
+        flag = "ok" if ms[3600] < TARGET_MS else "over target"
+        print(f"{label:<46} verdict {a.verdict!s:<15} 3600 samples: {ms[3600]:6.2f} ms "
+              f"({flag}, target {TARGET_MS:g} ms)")
+        growth = "  ".join(f"{n}: {v:.2f} ms" for n, v in ms.items())
+        print(f"{'':<46} growth  {growth}  (x{ms[14400] / ms[1800]:.1f} for x8 samples)")
+
+
+if __name__ == "__main__":
+    main()

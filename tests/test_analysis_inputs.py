@@ -1,0 +1,193 @@
+"""Every bad-input case of ``stiction.analyze``: ParameterError naming the argument for
+unusable arguments, verdict ``bad_data`` with a reason for unfit data."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stiction import Assessment, ParameterError, Verdict, analyze
+from stiction.scenarios import simulate
+
+
+@pytest.fixture(scope="module")
+def loop() -> tuple[np.ndarray, np.ndarray]:
+    res = simulate("table4-case2", noise=0.02, seed=3)
+    return res.op, res.pv
+
+
+# ------------------------------------------------------------------ unusable arguments
+@pytest.mark.parametrize(
+    ("kwargs", "name", "match"),
+    [
+        ({"ts": 0.0}, "ts", "must be > 0"),
+        ({"ts": -1.0}, "ts", "must be > 0"),
+        ({"ts": float("nan")}, "ts", "must be finite"),
+        ({"ts": "fast"}, "ts", "must be a number"),
+        ({"kp": 0.0}, "kp", "must not be 0"),
+        ({"kp": float("inf")}, "kp", "must be finite"),
+        ({"delay": -1.0}, "delay", "must be >= 0"),
+        ({"process": "slow"}, "process", "must be one of"),
+        ({"op_range": (100.0, 0.0)}, "op_range", "lo < hi"),
+        ({"op_range": (0.0,)}, "op_range", "must be a pair"),
+        ({"op_range": (0.0, float("nan"))}, "op_range", "must be finite"),
+        ({"k": 2.5}, "k", r"must lie in \[1, 2\]"),
+        ({"k": True}, "k", "must be a number"),
+    ],
+)
+def test_bad_arguments_name_themselves(
+    loop: tuple[np.ndarray, np.ndarray], kwargs: dict[str, object], name: str, match: str
+) -> None:
+    op, pv = loop
+    args: dict[str, object] = {"ts": 1.0, **kwargs}
+    with pytest.raises(ParameterError, match=match) as info:
+        analyze(op, pv, **args)  # type: ignore[arg-type]
+    assert info.value.name == name
+    assert f"`{name}`" in str(info.value)
+
+
+def test_unequal_lengths() -> None:
+    with pytest.raises(ParameterError, match="same length") as info:
+        analyze(np.zeros(100), np.zeros(99), ts=1.0)
+    assert info.value.name == "pv"
+
+
+@pytest.mark.parametrize("bad", [np.zeros((10, 2)), 3.0])
+def test_not_one_dimensional(bad: object) -> None:
+    with pytest.raises(ParameterError, match="one-dimensional") as info:
+        analyze(bad, np.zeros(20), ts=1.0)  # type: ignore[arg-type]
+    assert info.value.name == "op"
+
+
+def test_non_numeric_data() -> None:
+    with pytest.raises(ParameterError, match="sequence of numbers") as info:
+        analyze(np.zeros(50), ["a"] * 50, ts=1.0)
+    assert info.value.name == "pv"
+
+
+# --------------------------------------------------------------------- unfit data
+def _bad(a: Assessment, text: str) -> None:
+    assert a.verdict == Verdict.BAD_DATA, a
+    assert text in a.reason
+    assert a.fd is None
+
+
+def test_too_short() -> None:
+    _bad(analyze(np.arange(10.0), np.arange(10.0), ts=1.0), "too short")
+
+
+def test_too_short_for_the_period(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    a = analyze(op[:450], pv[:450], ts=1.0)  # two periods of ~226 s
+    assert a.verdict in (Verdict.BAD_DATA, Verdict.NOT_OSCILLATING)
+    assert "too short" in a.reason or "ACF" in a.reason
+
+
+def test_all_nan() -> None:
+    _bad(analyze(np.full(100, np.nan), np.full(100, np.nan), ts=1.0), "no finite samples")
+
+
+def test_short_gaps_are_interpolated(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    pv = pv.copy()
+    op = op.copy()
+    pv[[100, 400, 401, 402, 800]] = np.nan
+    op[600] = np.inf
+    a = analyze(op, pv, ts=1.0, kp=1.0)
+    assert a.verdict == Verdict.STICTION
+    assert any("interpolated 6 missing samples" in w for w in a.warnings)
+    assert a.fd is not None
+    assert abs(a.fd / 0.27 - 1) < 0.05
+
+
+def test_leading_and_trailing_gaps_are_trimmed(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    pv = pv.copy()
+    pv[:20] = np.nan
+    pv[-10:] = np.nan
+    a = analyze(op, pv, ts=1.0)
+    assert a.verdict == Verdict.STICTION
+    assert any("trimmed 30" in w for w in a.warnings)
+
+
+def test_too_gappy_total(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    pv = pv.copy()
+    pv[::5] = np.nan  # 20 % missing
+    _bad(analyze(op, pv, ts=1.0), "too gappy")
+
+
+def test_too_gappy_long_gap(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    pv = pv.copy()
+    pv[500:560] = np.nan  # one 60-sample gap (limit 24 for 1200 samples)
+    _bad(analyze(op, pv, ts=1.0), "gap of 60 samples")
+
+
+@pytest.mark.parametrize("which", ["op", "pv"])
+def test_flat_signal(loop: tuple[np.ndarray, np.ndarray], which: str) -> None:
+    op, pv = loop
+    if which == "op":
+        op = np.full_like(op, 42.0)
+    else:
+        pv = np.full_like(pv, 7.0)
+    _bad(analyze(op, pv, ts=1.0), f"{which.upper()} is constant")
+
+
+def test_frozen_pv(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    pv = pv.copy()
+    pv[300:1000] = pv[300]  # the tag stopped updating
+    _bad(analyze(op, pv, ts=1.0), "PV frozen")
+
+
+def test_saturated_op(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    _bad(analyze(np.clip(op, 0.0, 45.0), pv, ts=1.0, op_range=(0.0, 45.0)), "OP saturated")
+
+
+def test_quantised_pv(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    _bad(analyze(op, np.round(pv / 2.0) * 2.0, ts=1.0), "PV quantised")
+
+
+def test_fine_quantisation_is_only_a_warning(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    a = analyze(op, np.round(pv / 0.25) * 0.25, ts=1.0)
+    assert a.verdict == Verdict.STICTION
+    assert any("quantised" in w for w in a.warnings)
+
+
+def test_oscillation_too_fast_for_the_sample_time() -> None:
+    t = np.arange(600.0)
+    op = 50 + 10 * np.sin(2 * np.pi * t / 5.0)
+    pv = 50 + np.cos(2 * np.pi * t / 5.0) + 0.01 * np.sin(t * 0.37)
+    _bad(analyze(op, pv, ts=1.0), "too short to see")
+
+
+def test_fs_needs_kp(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    a = analyze(op, pv, ts=1.0)
+    assert a.verdict == Verdict.STICTION
+    assert a.fd is not None
+    assert a.fs is None
+    assert a.fs_op is None
+    assert "fs needs kp" in a.reason
+
+
+def test_op_range_scales_fractions(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    a = analyze(op, pv, ts=1.0, kp=1.0)
+    b = analyze(op / 5.0 + 4.0, pv, ts=1.0, kp=5.0, op_range=(4.0, 24.0))  # 4-20 mA style
+    assert a.fd is not None
+    assert b.fd is not None
+    assert b.fd == pytest.approx(a.fd, rel=1e-3)
+    assert b.fd_op == pytest.approx(a.fd * 20.0, rel=1e-3)
+    assert b.fs == pytest.approx(a.fs, rel=1e-3)
+
+
+def test_to_dict_has_exactly_the_fields(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    d = analyze(op, pv, ts=1.0, kp=1.0).to_dict()
+    assert set(d) == {"verdict", "reason", "oscillating", "period_s", "stiction_index", "fd",
+                      "fs", "jump", "fd_op", "fs_op", "cycles_used", "multi_jump", "warnings"}

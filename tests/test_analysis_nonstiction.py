@@ -1,0 +1,53 @@
+"""Loops that oscillate (or not) for reasons other than stiction never come out `stiction`."""
+
+from __future__ import annotations
+
+import pytest
+
+from stiction import Verdict, analyze
+from stiction.scenarios import scenario, simulate
+
+CASES = [
+    ("healthy", 0.05, 0), ("healthy", 0.1, 1), ("healthy", 0.5, 2),
+    ("aggressive-tuning", 0.0, 0), ("aggressive-tuning", 0.05, 1),
+    ("aggressive-tuning", 0.1, 2), ("aggressive-tuning", 0.1, 3),
+    ("disturbance", 0.0, 0), ("disturbance", 0.05, 1), ("disturbance", 0.2, 2),
+]
+
+
+@pytest.mark.parametrize(("name", "noise", "seed"), CASES)
+def test_never_stiction(name: str, noise: float, seed: int) -> None:
+    sc = scenario(name)
+    res = simulate(sc, noise=noise, seed=seed)
+    a = analyze(res.op, res.pv, ts=sc.ts, kp=sc.kp, delay=sc.theta)
+    assert a.verdict != Verdict.STICTION, a
+    assert a.fd is None
+    assert a.fs is None
+    assert a.reason
+
+
+def test_healthy_is_not_oscillating() -> None:
+    res = simulate("healthy", noise=0.1, seed=5)
+    a = analyze(res.op, res.pv, ts=1.0, kp=1.0, delay=6.0)
+    assert a.verdict == Verdict.NOT_OSCILLATING
+    assert not a.oscillating
+
+
+def test_sinusoidal_disturbance_is_no_stiction() -> None:
+    res = simulate("disturbance", noise=0.05, seed=7)
+    a = analyze(res.op, res.pv, ts=1.0, kp=1.0)
+    assert a.oscillating
+    assert a.verdict == Verdict.NO_STICTION
+    assert a.stiction_index is not None
+    assert a.stiction_index <= 0.4
+    assert "quantification not run" in a.reason
+
+
+def test_aggressive_tuning_is_well_below_the_stiction_band() -> None:
+    # ringing at ~42 s (21 samples per half period) under a random load: SI sits near 0.4,
+    # far from 0.6
+    res = simulate("aggressive-tuning", noise=0.05, seed=7)
+    a = analyze(res.op, res.pv, ts=1.0, kp=1.0)
+    assert a.oscillating
+    assert a.stiction_index is not None
+    assert a.stiction_index < 0.5
