@@ -116,10 +116,10 @@ def _cmd_signature(args: argparse.Namespace) -> int:
 
 def _pyplot() -> Any:
     try:  # optional dependency (the plot extra): imported only when a plot is asked for
-        import matplotlib  # noqa: PLC0415
+        import matplotlib
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt  # noqa: PLC0415
+        import matplotlib.pyplot as plt
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise UsageError("--plot needs matplotlib: pip install 'stiction-gateway[plot]'") from exc
     return plt
