@@ -23,8 +23,9 @@ Figures (see :class:`ScaleResult`):
 The gateway config is built from per-PLC configs that :func:`gateway.plc_sim.gateway_config`
 writes and :func:`gateway.config.parse_config` validates one device at a time. The result
 server's register map holds at most 65,536 / 20 = 3,276 loops, so above that a config of one
-gateway cannot be valid; the devices' result blocks here overlap (the results server is not
-what is measured, but its refresh cost is still paid).
+gateway cannot be valid: the bench parses at most 3,276 loops at a time and joins the parts,
+so result blocks of different parts overlap (the result server is not what is measured, but
+its refresh cost is still paid).
 """
 
 from __future__ import annotations
@@ -50,13 +51,20 @@ import numpy as np
 import yaml
 
 from gateway.app import Gateway
-from gateway.config import Config, GatewaySettings, MetricsSettings, parse_config
+from gateway.config import (
+    RESULT_BLOCK_SIZE,
+    Config,
+    GatewaySettings,
+    MetricsSettings,
+    parse_config,
+)
 from gateway.inputs.base import Quality
 from gateway.plc_sim import PlcSim, _build_banks, load_sim_config
 from gateway.plc_sim import gateway_config as sim_gateway_config
 
 REGISTERS_PER_LOOP = 4
 MAX_REGISTERS = 125
+RESULT_LOOPS = 65536 // RESULT_BLOCK_SIZE  # loops whose result blocks fit one register map
 HUGE_INTERVAL_S = 1e9  # "never": analysis rounds are started by the bench itself
 SCENARIO_MIX = ("table4-case1", "table4-case2", "table5-case1", "table5-case2", "table6",
                 "table7", "table9", "healthy", "aggressive-tuning", "disturbance")
@@ -135,10 +143,18 @@ def gateway_config(sim_paths: Sequence[str], ports: Sequence[int], *, workers: i
         data["devices"][0]["name"] = name
         for lp in data["loops"]:
             lp["device"] = name
-        part = parse_config(data, f"{path} (bench)")
-        devices.extend(part.devices)
-        loops.extend(part.loops)
-        settings = part.modbus_server
+        # a config holds at most RESULT_LOOPS loops (result register space): parse a
+        # device's loops in chunks, each with its own result blocks from 0
+        all_loops = data["loops"]
+        for c in range(0, len(all_loops), RESULT_LOOPS):
+            chunk = all_loops[c:c + RESULT_LOOPS]
+            for j, lp in enumerate(chunk):
+                lp["result_address"] = j * RESULT_BLOCK_SIZE
+            part = parse_config({**data, "loops": chunk}, f"{path} (bench)")
+            if c == 0:
+                devices.extend(part.devices)
+            loops.extend(part.loops)
+            settings = part.modbus_server
     return Config("bench", tuple(devices), tuple(loops),
                   GatewaySettings(analysis_interval_s=HUGE_INTERVAL_S, analysis_workers=workers),
                   MetricsSettings(("127.0.0.1", 0)), settings)
