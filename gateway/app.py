@@ -93,6 +93,14 @@ class Gateway:
     def loop_config(self, name: str) -> LoopConfig:
         return self.config.loops[self.store.index[name]]
 
+    def align_polls(self, phase_ref: float) -> None:
+        """Poll on the grid ``phase_ref + n * period`` (loop.time() seconds) instead of
+        from start-up. The demo and tests set it half a step after the simulated PLC's
+        steps, so that at high ``time_scale`` every simulated sample is read exactly once
+        (timer jitter of a millisecond is a large part of a 25 ms step)."""
+        for p in self.pollers:
+            p.phase_ref = phase_ref
+
     async def __aenter__(self) -> Gateway:
         await self.scheduler.start()
         try:
@@ -119,11 +127,22 @@ class Gateway:
         await self._close()
 
     async def _close(self) -> None:
+        # pollers finish their current poll (bounded by the device timeout) and return;
+        # only a poller that does not is cancelled
+        for p in self.pollers:
+            p.stop()
         for t in self._tasks:
-            t.cancel()
-        for t in self._tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
+            if t.get_name() == "analysis":
+                t.cancel()
+        if self._tasks:
+            grace = max((p.device.timeout_s for p in self.pollers), default=0.0) + 1.0
+            _, pending = await asyncio.wait(self._tasks, timeout=grace)
+            for t in pending:
+                t.cancel()
+            if pending:
+                _, pending = await asyncio.wait(pending, timeout=1.0)
+            for t in pending:
+                log.error("task %s did not stop; abandoned", t.get_name())
         self._tasks.clear()
         if self._http is not None:
             server, thread = self._http

@@ -200,18 +200,13 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
         address = sec.raw.get("result_address")
         if isinstance(name, str) and isinstance(address, int) and not isinstance(address, bool):
             blocks.append((name, address))
-        if loop is None:
-            continue
-        if loop.name in names:
-            sec.error("name", f"duplicate loop name {loop.name!r}")
-            continue
-        names.add(loop.name)
-        dev = devices[loop.device]
-        assert dev is not None
-        if loop.window_s / dev.poll_interval_s < MIN_WINDOW_SAMPLES:
-            sec.error("window_s", f"must hold at least {MIN_WINDOW_SAMPLES} samples of "
-                      f"device {dev.name} (poll_interval_s {dev.poll_interval_s:g})")
-        loops.append(loop)
+        if isinstance(name, str):
+            if name in names:
+                sec.error("name", f"duplicate loop name {name!r}")
+                continue
+            names.add(name)
+        if loop is not None:
+            loops.append(loop)
     top.done()
     _check_result_blocks(problems, blocks)
     if not problems.ok:
@@ -305,6 +300,11 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     op_range = sec.opt("op_range", s.number_pair, (0.0, 100.0))
     result_address = sec.req("result_address",
                              s.integer(0, 65536 - RESULT_BLOCK_SIZE))
+    if device is not None and window is not MISSING \
+            and window / device.poll_interval_s < MIN_WINDOW_SAMPLES:
+        sec.error("window_s", f"must hold at least {MIN_WINDOW_SAMPLES} samples of device "
+                  f"{device.name} (poll_interval_s {device.poll_interval_s:g})")
+        window = MISSING
     values = (name, device_name, process, kp, delay, window, op_range, result_address)
     if MISSING in values or device is None or None in points.values():
         return None

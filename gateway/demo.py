@@ -5,11 +5,14 @@ Loops (scenarios of :mod:`stiction.scenarios`, He-model valves, measurement nois
 
 =======  =================  ==================================================
 FIC101   table4-case2       sticky flow valve (fd 27 %, fs 30 %), period ~230 s
-LIC201   table5-case2       sticky level valve, integrating process, period ~95 s
+LIC201   table5-case2       sticky level valve, integrating process, period ~90 s
 TIC301   healthy            good valve, settles after its setpoint step
 FIC401   disturbance        good valve, 600 s sinusoidal load disturbance
 PIC501   aggressive-tuning  good valve, controller near its stability limit
 =======  =================  ==================================================
+
+At the default 40x, one wall second is 40 process seconds: the sticky flow loop shows
+``stiction`` after about 10 s of wall time, the level loop after about 25 s.
 """
 
 from __future__ import annotations
@@ -31,14 +34,19 @@ __all__ = ["DEMO_LOOPS", "demo_configs", "run_demo"]
 DEMO_TIME_SCALE = 40.0
 DEMO_ANALYSIS_INTERVAL_S = 120.0  # process seconds (3 s of wall time at 40x)
 DEMO_NOISE = 0.02
+# The demo is deterministic in its simulated loops (seeded). Seeds 1-8 were checked offline
+# over the first 3600 process s: in 6 of 8 the verdicts are as below; 4 is one of those.
+# (With shorter 1200 s windows the aggressive-tuning loop was briefly called `stiction` in
+# 3 of 8 seeds: a limit of the analysis on a few cycles of a noisy resonance.)
+DEMO_SEED = 4
 
 # name, scenario, window_s, what a plant engineer should see
 DEMO_LOOPS: tuple[tuple[str, str, float, str], ...] = (
     ("FIC101", "table4-case2", 1800.0, "sticky flow valve"),
-    ("LIC201", "table5-case2", 1200.0, "sticky level valve"),
+    ("LIC201", "table5-case2", 2400.0, "sticky level valve"),
     ("TIC301", "healthy", 1800.0, "healthy loop"),
     ("FIC401", "disturbance", 3600.0, "external disturbance"),
-    ("PIC501", "aggressive-tuning", 1200.0, "aggressive tuning"),
+    ("PIC501", "aggressive-tuning", 2400.0, "aggressive tuning"),
 )
 
 
@@ -57,7 +65,7 @@ def demo_configs(*, time_scale: float = DEMO_TIME_SCALE, metrics_port: int = 910
     """The plc-sim config and a gateway-config template (device port filled in later)."""
     sim = {
         "listen": f"127.0.0.1:{sim_port}", "unit_id": 1, "ts": 1.0, "time_scale": time_scale,
-        "seed": 7,
+        "seed": DEMO_SEED,
         "loops": [{"name": n, "scenario": sc, "noise": DEMO_NOISE, "window_s": w}
                   for n, sc, w, _ in DEMO_LOOPS],
     }
@@ -109,7 +117,9 @@ async def run_demo(duration: float | None = None, *, out: TextIO = sys.stdout,
     async with PlcSim(sim_cfg) as sim:
         gw_raw["devices"][0]["port"] = sim.port
         config = parse_config(gw_raw, "<demo gateway>")
-        async with Gateway(config) as gw:
+        gateway = Gateway(config)
+        gateway.align_polls(sim.mid_step())
+        async with gateway as gw:
             out.write(
                 f"stiction-gateway demo: {len(config.loops)} simulated loops at "
                 f"{time_scale:g}x real time (plc-sim on 127.0.0.1:{sim.port})\n"

@@ -210,6 +210,8 @@ class PlcSim:
         self.server = RegisterServer({"holding": self.image, "input": self.image},
                                      host=host, port=port, unit_id=cfg.unit_id)
         self._task: asyncio.Task[None] | None = None
+        self.period = cfg.ts / cfg.time_scale  # wall seconds per step
+        self.phase_ref: float | None = None  # loop.time() of the step grid, once running
         self.step()  # registers hold the first sample before anyone reads
 
     @property
@@ -233,8 +235,9 @@ class PlcSim:
         """Step on an absolute schedule of ts / time_scale wall seconds; a late tick is
         caught up (at most 100 steps at once), so process time keeps pace with wall time."""
         loop = asyncio.get_running_loop()
-        period = self.cfg.ts / self.cfg.time_scale
+        period = self.period
         due = loop.time() + period
+        self.phase_ref = due
         while True:
             await asyncio.sleep(max(0.0, due - loop.time()))
             behind = int((loop.time() - due) // period) + 1
@@ -245,7 +248,13 @@ class PlcSim:
     async def __aenter__(self) -> PlcSim:
         await self.server.start()
         self._task = asyncio.create_task(self.run(), name="plc-sim")
+        await asyncio.sleep(0)  # let run() fix its step grid (phase_ref)
         return self
+
+    def mid_step(self) -> float:
+        """A loop.time() instant half-way between two steps (see Gateway.align_polls)."""
+        assert self.phase_ref is not None
+        return self.phase_ref + self.period / 2
 
     async def __aexit__(self, *exc: object) -> None:
         if self._task is not None:

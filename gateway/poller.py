@@ -13,8 +13,10 @@ A loop is *stale* when it has had no good sample for ``STALE_POLLS`` polls.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
 import logging
+import math
 import random
 import time
 
@@ -82,15 +84,29 @@ class DevicePoller:
         self.missed_ticks = 0
         self.tick_starts: list[float] = []  # loop.time() of recent poll starts (jitter)
         self._last_good = np.full(len(store.loops), -1, dtype=np.int64)
+        self._stop = asyncio.Event()
+        self.phase_ref: float | None = None  # loop.time() instant on the tick grid, if set
+
+    def stop(self) -> None:
+        """Finish the poll in progress (if any) and return from :meth:`run`.
+
+        Shutdown asks rather than cancels: cancelling a task inside a pymodbus request
+        can leave it waiting forever (seen with pymodbus 3.16 on Python 3.11)."""
+        self._stop.set()
 
     async def run(self) -> None:
         loop = asyncio.get_running_loop()
         due = loop.time()
+        if self.phase_ref is not None:  # first tick on the grid phase_ref + n * period
+            due = self.phase_ref + math.ceil((due - self.phase_ref) / self.period) * self.period
         try:
-            while True:
+            while not self._stop.is_set():
                 delay = due - loop.time()
                 if delay > 0:
-                    await asyncio.sleep(delay)
+                    with contextlib.suppress(TimeoutError):
+                        await asyncio.wait_for(self._stop.wait(), delay)
+                    if self._stop.is_set():
+                        break
                 self._note_start(loop.time())
                 await self.poll_once()
                 due += self.period

@@ -24,8 +24,10 @@ from types import ModuleType
 
 from .base import DeviceInput, PointSpec, Quality, ReadResult
 
-__all__ = ["PROTOCOLS", "DeviceInput", "PointSpec", "Quality", "ReadResult",
+__all__ = ["PLUGIN_FUNCTIONS", "PROTOCOLS", "DeviceInput", "PointSpec", "Quality", "ReadResult",
            "protocol_names", "protocol_plugin"]
+
+PLUGIN_FUNCTIONS = ("parse_device", "parse_point", "create_input")
 
 PROTOCOLS: dict[str, str] = {
     "modbus": "gateway.inputs.modbus",
@@ -43,8 +45,11 @@ def protocol_plugin(name: str) -> ModuleType | None:
     if module is None:
         return None
     try:
-        return importlib.import_module(module)
+        plugin = importlib.import_module(module)
     except ModuleNotFoundError as exc:
         if exc.name == module:
             return None
         raise
+    if not all(hasattr(plugin, fn) for fn in PLUGIN_FUNCTIONS):
+        return None  # an adapter module not (yet) wired up as a plugin
+    return plugin

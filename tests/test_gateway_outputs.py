@@ -1,0 +1,185 @@
+"""Outputs: the result-register map, the read-only result server, Prometheus metrics."""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from gateway_helpers import run
+from prometheus_client import CollectorRegistry, generate_latest
+from pymodbus.client import AsyncModbusTcpClient
+
+from gateway.config import LoopConfig, PointConfig, ResultServerSettings
+from gateway.inputs.modbus import ModbusPoint, decode_registers
+from gateway.metrics import GatewayMetrics
+from gateway.result_server import ResultServer, result_block
+from gateway.store import ResultStore
+from stiction import Assessment, Verdict
+
+STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
+                    stiction_index=0.93, fd=0.27, fs=0.30, jump=0.03, fd_op=27.0, fs_op=30.0,
+                    cycles_used=6)
+NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0,
+                   stiction_index=0.01)
+
+
+def _loop(name: str, address: int) -> LoopConfig:
+    point = PointConfig(ModbusPoint(0, "float32"))
+    return LoopConfig(name, "plc", point, point, result_address=address)
+
+
+def _store() -> ResultStore:
+    st = ResultStore(["FIC101", "FIC401", "TIC301"])
+    st.set_result(0, STICKY, t=1_700_000_000.5, window_fill=1.0, samples=1800)
+    st.set_result(0, STICKY, t=1_700_000_300.0, window_fill=0.5, samples=1800)
+    st.set_result(1, NO_KP, t=1_700_000_300.0, window_fill=0.25, samples=900)
+    st.latest_op[:] = [51.5, 49.0, np.nan]
+    st.latest_pv[:] = [50.2, 47.0, np.nan]
+    return st
+
+
+def _decode_block(regs: list[int] | np.ndarray, word_order: str = "big") -> dict[str, float]:
+    r = np.asarray(regs, dtype=np.uint16)
+    f = decode_registers(r[2:12], "float32", word_order)
+    return {"code": int(r[0]), "seq": int(r[1]), "si": f[0], "fd": f[1], "fs": f[2],
+            "period": f[3], "jump": f[4],
+            "t": decode_registers(r[12:14], "uint32", word_order)[0],
+            "fill": decode_registers(r[14:16], "float32", word_order)[0],
+            "reserved": int(np.abs(r[16:20]).sum())}
+
+
+@pytest.mark.parametrize("word_order", ["big", "little"])
+def test_result_block_layout(word_order: str) -> None:
+    st = _store()
+    b = _decode_block(result_block(st.results[0], code=st.verdict_code(0),
+                                   word_order=word_order), word_order)
+    assert b["code"] == 4
+    assert b["seq"] == 2
+    assert b["si"] == pytest.approx(0.93)
+    assert b["fd"] == pytest.approx(27.0)
+    assert b["fs"] == pytest.approx(30.0)
+    assert b["period"] == pytest.approx(228.0)
+    assert b["jump"] == pytest.approx(3.0)
+    assert b["t"] == 1_700_000_300
+    assert b["fill"] == pytest.approx(0.5)
+    assert b["reserved"] == 0
+    b = _decode_block(result_block(st.results[1], code=st.verdict_code(1),
+                                   word_order=word_order), word_order)
+    assert (b["code"], b["seq"]) == (2, 1)
+    assert math.isnan(b["fs"])
+    assert math.isnan(b["fd"])
+    assert result_block(None, code=0).tolist() == [0] * 20
+    st.set_stale(np.array([0]), True)
+    assert st.verdict_code(0) == 6
+
+
+def test_result_server_serves_blocks_and_refuses_writes() -> None:
+    st = _store()
+    loops = [_loop("FIC101", 0), _loop("FIC401", 20), _loop("TIC301", 100)]
+    settings = ResultServerSettings(listen=("127.0.0.1", 0), unit_id=1)
+
+    async def go() -> None:
+        server = ResultServer(settings, loops, st)
+        await server.start()
+        client = AsyncModbusTcpClient("127.0.0.1", port=server.port, timeout=2, retries=0)
+        try:
+            assert await client.connect()
+            holding = await client.read_holding_registers(0, count=40, device_id=1)
+            inputs = await client.read_input_registers(0, count=40, device_id=1)
+            assert not holding.isError()
+            assert holding.registers == inputs.registers
+            assert _decode_block(holding.registers[:20])["fd"] == pytest.approx(27.0)
+            assert _decode_block(holding.registers[20:40])["code"] == 2
+            tic = await client.read_input_registers(100, count=20, device_id=1)
+            assert tic.registers == [0] * 20  # no result yet: code 0
+            # every kind of write is answered with exception 1 (illegal function)
+            before = list(holding.registers)
+            for rsp in [await client.write_register(0, 9, device_id=1),
+                        await client.write_registers(2, [1, 2, 3], device_id=1),
+                        await client.write_coil(0, True, device_id=1),
+                        await client.write_coils(0, [True, False], device_id=1),
+                        await client.readwrite_registers(read_address=0, read_count=2,
+                                                         write_address=0, values=[7, 7],
+                                                         device_id=1)]:
+                assert rsp.isError()
+                assert rsp.exception_code == 1
+            after = await client.read_holding_registers(0, count=40, device_id=1)
+            assert after.registers == before
+            assert server.server.refused_writes == 5
+            # a new assessment shows up at once; a wrong unit id gets exception 0x0A
+            st.set_result(1, STICKY, t=1_700_000_600.0, window_fill=1.0, samples=1)
+            again = await client.read_input_registers(20, count=20, device_id=1)
+            assert _decode_block(again.registers)["code"] == 4
+            assert _decode_block(again.registers)["seq"] == 2
+            wrong = await client.read_input_registers(0, count=2, device_id=9)
+            assert wrong.isError()
+            assert wrong.exception_code == 0x0A
+            past = await client.read_input_registers(110, count=20, device_id=1)
+            assert past.isError()
+        finally:
+            client.close()
+            await server.stop()
+
+    run(go(), 30)
+
+
+def _registry() -> CollectorRegistry:
+    registry = CollectorRegistry()
+    metrics = GatewayMetrics(registry, _store())
+    metrics.add_device("plc1")
+    metrics.device_up.labels(device="plc1").set(1)
+    metrics.poll_duration.labels(device="plc1").observe(0.004)
+    metrics.poll_requests.labels(device="plc1").inc(4)
+    metrics.poll_errors.labels(device="plc1", kind="timeout").inc()
+    metrics.analysis_duration.observe(0.003)
+    return registry
+
+
+def test_metrics_read_the_store() -> None:
+    reg = _registry()
+
+    def v(name: str, **labels: str) -> float | None:
+        return reg.get_sample_value(name, labels)
+
+    assert v("stiction_loop_stiction_index", loop="FIC101") == pytest.approx(0.93)
+    assert v("stiction_loop_fd_ratio", loop="FIC101") == pytest.approx(0.27)
+    assert v("stiction_loop_fs_ratio", loop="FIC101") == pytest.approx(0.30)
+    assert v("stiction_loop_jump_ratio", loop="FIC101") == pytest.approx(0.03)
+    assert v("stiction_loop_oscillation_period_seconds", loop="FIC101") == 228.0
+    assert v("stiction_loop_last_assessment_timestamp_seconds", loop="FIC101") == 1_700_000_300
+    assert v("stiction_loop_window_fill_ratio", loop="FIC101") == 0.5
+    assert v("stiction_loop_op_percent", loop="FIC101") == 51.5
+    assert v("stiction_loop_pv", loop="FIC101") == pytest.approx(50.2)
+    assert v("stiction_loop_verdict", loop="FIC101", verdict="stiction") == 1.0
+    assert v("stiction_loop_verdict", loop="FIC101", verdict="no_stiction") == 0.0
+    assert v("stiction_loop_verdict", loop="TIC301", verdict="none") == 1.0
+    assert v("stiction_loop_fs_ratio", loop="FIC401") is None  # not estimated: no series
+    assert v("stiction_loop_op_percent", loop="TIC301") is None
+    assert v("stiction_device_up", device="plc1") == 1.0
+    assert v("stiction_poll_requests_total", device="plc1") == 4.0
+    assert v("stiction_poll_errors_total", device="plc1", kind="timeout") == 1.0
+    assert v("stiction_poll_errors_total", device="plc1", kind="connect") == 0.0
+    assert v("stiction_poll_duration_seconds_count", device="plc1") == 1.0
+    assert v("stiction_analysis_duration_seconds_count") == 1.0
+    assert v("stiction_build_info", version="0.1.0") == 1.0
+    text = generate_latest(reg).decode()
+    assert "_created" not in text
+
+
+def test_promtool_check_metrics() -> None:
+    promtool = shutil.which("promtool")
+    if promtool is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("promtool is missing under CI=true (.ci/run installs the prometheus "
+                        "package)")
+        pytest.skip("promtool not installed (Debian package prometheus); CI runs this")
+    text = generate_latest(_registry())
+    res = subprocess.run([promtool, "check", "metrics"], input=text, capture_output=True,
+                         timeout=30, check=False)
+    problems = (res.stdout + res.stderr).decode().strip()
+    assert res.returncode == 0, problems
+    assert problems == ""

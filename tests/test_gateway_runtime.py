@@ -1,0 +1,142 @@
+"""Windows (ring buffers), store stale flags, and the CLI life cycle: run + SIGTERM,
+plc-sim --write-gateway-config, a bounded demo."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from gateway.config import load_config
+from gateway.inputs.base import Quality
+from gateway.plc_sim import load_sim_config
+from gateway.windows import WindowBank, analysis_segment
+
+G, N = Quality.GOOD, Quality.NO_COMM
+CLI = [sys.executable, "-m", "gateway.cli"]
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_ring_buffer_wraps_in_time_order() -> None:
+    bank = WindowBank(["A", "B"], 4)
+    assert bank.op.dtype == np.float32
+    assert bank.quality.dtype == np.uint8
+    for k in range(6):
+        bank.append(float(k), np.array([k, 10 + k]), np.array([-k, -10 - k]),
+                    np.array([G, N if k == 5 else G], dtype=np.uint8))
+    t, op, pv, q = bank.series([0, 1])
+    assert t.tolist() == [2.0, 3.0, 4.0, 5.0]
+    assert op.tolist() == [[2, 3, 4, 5], [12, 13, 14, 15]]
+    assert pv[1].tolist() == [-12, -13, -14, -15]
+    assert q[1].tolist() == [G, G, G, N]
+    assert bank.count == 4
+    op_l, _pv_l, q_l = bank.latest()
+    assert op_l.tolist() == [5, 15]
+    assert q_l.tolist() == [G, N]
+    t, op, _, _ = WindowBank(["A"], 8).series([0])
+    assert len(t) == 0
+    # bytes per stored sample per loop: 4 (op) + 4 (pv) + 1 (quality), plus 8 per row
+    big = WindowBank([f"L{i}" for i in range(1000)], 3600)
+    assert big.nbytes == 3600 * 1000 * 9 + 3600 * 8
+
+
+def test_analysis_segment_fills_short_gaps_and_cuts_at_long_ones() -> None:
+    op = np.arange(12, dtype=np.float32)
+    pv = op * 2
+    q = np.array([N, G, G, N, N, N, N, G, G, N, G, G], dtype=np.uint8)
+    o, p = analysis_segment(op, pv, q, max_fill=3)
+    assert o.tolist() == [7, 8, 9, 10, 11]  # after the 4-sample gap; 1-sample gap filled
+    assert p.tolist() == [14, 16, 18, 20, 22]
+    q2 = np.array([G] * 8 + [N] * 4, dtype=np.uint8)  # trailing outage: keep what came before
+    assert analysis_segment(op, pv, q2)[0].tolist() == list(range(8))
+    assert len(analysis_segment(op, pv, np.full(12, N, dtype=np.uint8))[0]) == 0
+
+
+def _wait_http(port: int, timeout: float = 20.0) -> str:
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=2) as r:
+                return str(r.read().decode())
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_run_serves_and_stops_cleanly_on_sigterm(tmp_path: Path) -> None:
+    """A gateway whose PLC is not there keeps running (device down), serves metrics, and
+    exits 0 within a few seconds of SIGTERM."""
+    raw = yaml.safe_load((ROOT / "configs" / "example.yaml").read_text())
+    metrics_port = _free_port()
+    raw["metrics"]["listen"] = f"127.0.0.1:{metrics_port}"
+    raw["modbus_server"]["listen"] = "127.0.0.1:0"
+    for dev in raw["devices"]:
+        dev["host"], dev["port"], dev["timeout_s"] = "127.0.0.1", _free_port(), 0.2
+    path = tmp_path / "gw.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    proc = subprocess.Popen([*CLI, "run", "--config", str(path)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    try:
+        text = _wait_http(metrics_port)
+        assert 'stiction_device_up{device="plc1"} 0.0' in text
+        assert 'stiction_loop_verdict{loop="FIC101",verdict="none"} 1.0' in text
+        stale = 'stiction_loop_verdict{loop="FIC101",verdict="stale"} 1.0'
+        deadline = time.monotonic() + 10  # stale after 3 polls without a good sample
+        while stale not in text and time.monotonic() < deadline:
+            time.sleep(0.5)
+            text = _wait_http(metrics_port)
+        assert stale in text
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        out, _ = proc.communicate(timeout=15)
+        assert proc.returncode == 0, out
+        assert time.monotonic() - t0 < 5.0
+        assert "device plc1: down (connect)" in out
+        assert "gateway stopping" in out
+        assert "Traceback" not in out
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def test_plc_sim_writes_its_gateway_config(tmp_path: Path) -> None:
+    out = tmp_path / "gw.yaml"
+    res = subprocess.run([*CLI, "plc-sim", "--config", str(ROOT / "configs" / "plc-sim.yaml"),
+                          "--write-gateway-config", str(out)], capture_output=True, text=True,
+                         timeout=60, check=False)
+    assert res.returncode == 0, res.stderr
+    gw = load_config(out)
+    sim = load_sim_config(ROOT / "configs" / "plc-sim.yaml")
+    assert [lp.name for lp in gw.loops] == [lp.name for lp in sim.loops]
+    assert gw.devices[0].options.port == 5502
+    assert gw.loops[1].process == "integrating"
+    assert gw.loops[1].kp == 0.2
+
+
+def test_demo_runs_bounded_and_prints_where_it_listens() -> None:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    res = subprocess.run([*CLI, "demo", "--duration", "6"], capture_output=True, text=True,
+                         timeout=90, check=False, env=env)
+    assert res.returncode == 0, res.stderr
+    out = res.stdout
+    assert "Prometheus metrics: http://127.0.0.1:" in out
+    assert "Modbus result server: 127.0.0.1:" in out
+    for name in ("FIC101", "LIC201", "TIC301", "FIC401", "PIC501"):
+        assert name in out
+    assert "demo stopped" in out
