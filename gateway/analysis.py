@@ -6,12 +6,15 @@ analyses every loop: windows are copied out of the ring buffers in batches of
 ``stiction.analyze`` in a ``ProcessPoolExecutor`` worker (spawned, never forked from the
 threaded gateway), and the results go into the :class:`~gateway.store.ResultStore`. At most
 ``2 × workers`` batches are in flight, which bounds the memory a round holds. A round that
-is still running when the next is due makes that one wait (no pile-up).
+is still running when the next is due makes that one wait (no pile-up). Workers run at a
+lower CPU priority (``nice`` +10 by default), so on a busy box the polling event loop wins a
+contested core and analysis only takes what is left.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
 import importlib
 import logging
@@ -36,6 +39,8 @@ __all__ = ["AnalysisScheduler", "BankRef", "LoopJob", "analyze_batch"]
 log = logging.getLogger(__name__)
 
 DEFAULT_ANALYZE = "stiction:analyze"
+WORKER_NICE = 10
+"""Niceness added to each analysis worker: polling must keep its schedule under load."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,6 +127,13 @@ def bad_values_reason(quality: NDArray[np.uint8], usable: int) -> str | None:
     return None
 
 
+def _lower_priority(increment: int) -> None:
+    """Worker initializer: lower this process's CPU priority (never fails the worker)."""
+    if increment > 0:
+        with contextlib.suppress(OSError, AttributeError):
+            os.nice(increment)
+
+
 def _warm(path: str) -> int:
     _resolve(path)
     return os.getpid()
@@ -133,7 +145,8 @@ class AnalysisScheduler:
     def __init__(self, banks: Sequence[BankRef], store: ResultStore, *,
                  interval_wall_s: float, workers: int = 0, batch_size: int = 64,
                  analyze: str = DEFAULT_ANALYZE,
-                 on_duration: Callable[[float], None] | None = None) -> None:
+                 on_duration: Callable[[float], None] | None = None,
+                 nice: int = WORKER_NICE) -> None:
         self.banks = list(banks)
         self.store = store
         self.interval_wall_s = interval_wall_s
@@ -141,6 +154,7 @@ class AnalysisScheduler:
         self.batch_size = batch_size
         self.analyze = analyze
         self.on_duration = on_duration
+        self.nice = nice
         self.rounds = 0
         self.last_round_s = 0.0
         self._pool: ProcessPoolExecutor | None = None
@@ -148,7 +162,8 @@ class AnalysisScheduler:
     async def start(self) -> None:
         """Start the worker processes (and import the analysis in each) before polling."""
         ctx = multiprocessing.get_context("spawn")
-        self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx)
+        self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx,
+                                         initializer=_lower_priority, initargs=(self.nice,))
         loop = asyncio.get_running_loop()
         await asyncio.gather(*(loop.run_in_executor(self._pool, _warm, self.analyze)
                                for _ in range(self.workers)))
