@@ -20,12 +20,11 @@ Figures (see :class:`ScaleResult`):
   one full analysis round runs while polling goes on; jitter is then also reported for the
   ticks that started during the round.
 
-The gateway config is built from per-PLC configs that :func:`gateway.plc_sim.gateway_config`
-writes and :func:`gateway.config.parse_config` validates one device at a time. The result
-server's register map holds at most 65,536 / 20 = 3,276 loops, so above that a config of one
-gateway cannot be valid: the bench parses at most 3,276 loops at a time and joins the parts,
-so result blocks of different parts overlap (the result server is not what is measured, but
-its refresh cost is still paid).
+The gateway config is built from the per-PLC configs that
+:func:`gateway.plc_sim.gateway_config` writes, joined into one document whose result blocks
+:func:`gateway.plc_sim.assign_result_blocks` numbers across all loops (3,276 per result unit
+id: 10,000 loops use unit ids 1-4), and validated as a whole by
+:func:`gateway.config.parse_config`: the gateway runs a real config, result server included.
 """
 
 from __future__ import annotations
@@ -51,20 +50,13 @@ import numpy as np
 import yaml
 
 from gateway.app import Gateway
-from gateway.config import (
-    RESULT_BLOCK_SIZE,
-    Config,
-    GatewaySettings,
-    MetricsSettings,
-    parse_config,
-)
+from gateway.config import Config, parse_config
 from gateway.inputs.base import Quality
-from gateway.plc_sim import PlcSim, _build_banks, load_sim_config
+from gateway.plc_sim import PlcSim, _build_banks, assign_result_blocks, load_sim_config
 from gateway.plc_sim import gateway_config as sim_gateway_config
 
 REGISTERS_PER_LOOP = 4
 MAX_REGISTERS = 125
-RESULT_LOOPS = 65536 // RESULT_BLOCK_SIZE  # loops whose result blocks fit one register map
 HUGE_INTERVAL_S = 1e9  # "never": analysis rounds are started by the bench itself
 SCENARIO_MIX = ("table4-case1", "table4-case2", "table5-case1", "table5-case2", "table6",
                 "table7", "table9", "healthy", "aggressive-tuning", "disturbance")
@@ -131,10 +123,14 @@ def sim_config(plc: int, first_loop: int, n_loops: int, *, window_s: float,
     }
 
 
-def gateway_config(sim_paths: Sequence[str], ports: Sequence[int], *, workers: int = 0) -> Any:
-    """One gateway :class:`~gateway.config.Config` reading every simulated PLC."""
+def gateway_config(sim_paths: Sequence[str], ports: Sequence[int], *, workers: int = 0
+                   ) -> Config:
+    """One gateway :class:`~gateway.config.Config` reading every simulated PLC: the
+    per-PLC configs joined into one document (result blocks renumbered across all loops,
+    3,276 per result unit id) and validated as a whole."""
     devices: list[Any] = []
     loops: list[Any] = []
+    data: dict[str, Any] = {}
     for k, (path, port) in enumerate(zip(sim_paths, ports, strict=True)):
         data = sim_gateway_config(load_sim_config(path), port=port,
                                   analysis_interval_s=HUGE_INTERVAL_S,
@@ -143,21 +139,11 @@ def gateway_config(sim_paths: Sequence[str], ports: Sequence[int], *, workers: i
         data["devices"][0]["name"] = name
         for lp in data["loops"]:
             lp["device"] = name
-        # a config holds at most RESULT_LOOPS loops (result register space): parse a
-        # device's loops in chunks, each with its own result blocks from 0
-        all_loops = data["loops"]
-        for c in range(0, len(all_loops), RESULT_LOOPS):
-            chunk = all_loops[c:c + RESULT_LOOPS]
-            for j, lp in enumerate(chunk):
-                lp["result_address"] = j * RESULT_BLOCK_SIZE
-            part = parse_config({**data, "loops": chunk}, f"{path} (bench)")
-            if c == 0:
-                devices.extend(part.devices)
-            loops.extend(part.loops)
-            settings = part.modbus_server
-    return Config("bench", tuple(devices), tuple(loops),
-                  GatewaySettings(analysis_interval_s=HUGE_INTERVAL_S, analysis_workers=workers),
-                  MetricsSettings(("127.0.0.1", 0)), settings)
+        devices += data["devices"]
+        loops += data["loops"]
+    assign_result_blocks(loops, data["modbus_server"]["unit_id"])
+    data["gateway"]["analysis_workers"] = workers
+    return parse_config({**data, "devices": devices, "loops": loops}, "bench")
 
 
 # ------------------------------------------------------------------------ child: PLC

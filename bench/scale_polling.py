@@ -103,7 +103,8 @@ async def _plc_capacity(loops: int, repeats: int) -> list[tuple[str, float, str]
     for _ in range(5):
         t0 = time.perf_counter()
         for k in range(n_reads):
-            await sim.server._action(3, 0, k * 125, min(125, regs - k * 125), buf, None)
+            sim.server._serve(sim.server.unit_id, 3, 0, k * 125, min(125, regs - k * 125),
+                              buf, None)
         reads.append((time.perf_counter() - t0) / n_reads)
 
     dev = SimDevice(id=1, simdata=[SimData(0, count=regs, datatype=DataType.REGISTERS)])

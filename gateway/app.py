@@ -444,7 +444,9 @@ class Gateway:
         self.scheduler.banks = list(new.bank_refs)
         self.scheduler.store = new.store
         self.scheduler.interval_wall_s = g.analysis_interval_s / g.time_scale
-        if config.modbus_server != old.config.modbus_server:
+        if config.modbus_server != old.config.modbus_server \
+                or not self.result_server.serves(config.loops):
+            # new settings, or a result unit id the running server has no device for
             await self.result_server.stop()
             self.result_server = ResultServer(config.modbus_server, config.loops, new.store)
             await self.result_server.start()
@@ -510,9 +512,10 @@ async def serve(config: Config, stop: asyncio.Event, *, reload: asyncio.Event | 
     notifier = notifier or Notifier(address="")
     async with Gateway(config, **kwargs) as gw:
         log.info("gateway running: %d devices, %d loops; metrics on %s:%s, "
-                 "Modbus results on %s:%s", len(config.devices), len(config.loops),
-                 config.metrics.listen[0], gw.metrics_port,
-                 config.modbus_server.listen[0], gw.result_port)
+                 "Modbus results on %s:%s (unit ids %s)", len(config.devices),
+                 len(config.loops), config.metrics.listen[0], gw.metrics_port,
+                 config.modbus_server.listen[0], gw.result_port,
+                 ", ".join(map(str, sorted(gw.result_server.unit_ids_of(config.loops)))))
         if on_started is not None:
             on_started(gw)
         waiter = asyncio.create_task(stop.wait())

@@ -15,7 +15,7 @@ import itertools
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import yaml
 
@@ -26,6 +26,7 @@ from .inputs import protocol_names, protocol_plugin
 
 __all__ = [
     "RESULT_BLOCK_SIZE",
+    "RESULT_LOOPS_PER_UNIT",
     "Config",
     "DeviceConfig",
     "GatewaySettings",
@@ -39,6 +40,9 @@ __all__ = [
 
 RESULT_BLOCK_SIZE = 20
 """Registers per loop in the result server (offsets +0..+19, see docs/modbus-map.md)."""
+RESULT_LOOPS_PER_UNIT = 65536 // RESULT_BLOCK_SIZE
+"""Loops whose result blocks fit one unit id's 16-bit register space (3,276)."""
+MAX_RESULT_UNIT_ID = 247
 
 MIN_WINDOW_SAMPLES = 16
 PROCESSES = ("self-regulating", "integrating")
@@ -102,6 +106,10 @@ class LoopConfig:
     delay_s: float = 0.0
     window_s: float = 7200.0
     op_range: tuple[float, float] = (0.0, 100.0)
+    # unit id of the result block; None: modbus_server.unit_id (load_config always fills
+    # it in). Not in repr: like result_address it does not change what the loop's
+    # assessment means (state.result_signature), and state files stay compatible.
+    result_unit_id: int | None = dataclasses.field(default=None, repr=False)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -189,7 +197,8 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
         devices[dname] = DeviceConfig(dname, protocol, poll, timeout, options)
 
     loops: list[LoopConfig] = []
-    blocks: list[tuple[str, int]] = []  # (loop, result_address) of every loop that has one
+    # (loop, result unit id, result_address) of every loop that has both
+    blocks: list[tuple[str, int, int]] = []
     names: set[str] = set()
     raw_loops = top.req("loops", _nonempty_list)
     for i, raw in enumerate(raw_loops if raw_loops is not MISSING else []):
@@ -198,11 +207,13 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
         sec = Section(problems, where, raw)
         if not sec.valid:
             continue
-        loop = _parse_loop(sec, devices, protocols)
+        loop = _parse_loop(sec, devices, protocols, server.unit_id)
         sec.done()
         address = sec.raw.get("result_address")
-        if isinstance(name, str) and isinstance(address, int) and not isinstance(address, bool):
-            blocks.append((name, address))
+        unit = sec.raw.get("result_unit_id", server.unit_id)
+        if isinstance(name, str) and _is_int(address) and _is_int(unit) \
+                and (unit == server.unit_id or 1 <= unit <= MAX_RESULT_UNIT_ID):
+            blocks.append((name, unit, address))
         if isinstance(name, str):
             if name in names:
                 sec.error("name", f"duplicate loop name {name!r}")
@@ -211,11 +222,15 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
         if loop is not None:
             loops.append(loop)
     top.done()
-    _check_result_blocks(problems, blocks)
+    _check_result_blocks(problems, blocks, server.unit_id)
     if not problems.ok:
         raise ConfigError(problems.lines)
     return Config(source, tuple(d for d in devices.values() if d is not None), tuple(loops),
                   gateway, metrics, server)
+
+
+def _is_int(value: Any) -> TypeGuard[int]:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _nonempty_list(value: Any) -> list[Any]:
@@ -281,7 +296,7 @@ def _parse_point(sec: Section, device: DeviceConfig | None,
 
 
 def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
-                protocols: Mapping[str, str]) -> LoopConfig | None:
+                protocols: Mapping[str, str], default_unit: Any) -> LoopConfig | None:
     name = sec.req("name", s.string)
     device_name = sec.req("device", s.string)
     device: DeviceConfig | None = None
@@ -307,12 +322,14 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     op_range = sec.opt("op_range", s.number_pair, (0.0, 100.0))
     result_address = sec.req("result_address",
                              s.integer(0, 65536 - RESULT_BLOCK_SIZE))
+    result_unit_id = sec.opt("result_unit_id", s.integer(1, MAX_RESULT_UNIT_ID), default_unit)
     if device is not None and window is not MISSING \
             and window / device.poll_interval_s < MIN_WINDOW_SAMPLES:
         sec.error("window_s", f"must hold at least {MIN_WINDOW_SAMPLES} samples of device "
                   f"{device.name} (poll_interval_s {device.poll_interval_s:g})")
         window = MISSING
-    values = (name, device_name, process, kp, delay, window, op_range, result_address)
+    values = (name, device_name, process, kp, delay, window, op_range, result_address,
+              result_unit_id)
     if MISSING in values or device is None or None in points.values():
         return None
     op, pv = points["op"], points["pv"]
@@ -320,7 +337,8 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     assert pv is not None
     return LoopConfig(name=name, device=device_name, op=op, pv=pv,
                       result_address=result_address, process=process, kp=kp,
-                      delay_s=delay, window_s=window, op_range=op_range)
+                      delay_s=delay, window_s=window, op_range=op_range,
+                      result_unit_id=result_unit_id)
 
 
 def _kp(value: Any) -> float | None:
@@ -332,12 +350,15 @@ def _kp(value: Any) -> float | None:
     return out
 
 
-def _check_result_blocks(problems: Problems, blocks: list[tuple[str, int]]) -> None:
-    """Each loop's 20-register block must not overlap another's (reported once per pair
-    of neighbours in address order)."""
-    ordered = sorted(blocks, key=lambda b: b[1])
-    for (pname, pa), (name, a) in itertools.pairwise(ordered):
-        if a < pa + RESULT_BLOCK_SIZE:
+def _check_result_blocks(problems: Problems, blocks: list[tuple[str, int, int]],
+                         default_unit: Any) -> None:
+    """Within each result unit id, a loop's 20-register block must not overlap another's
+    (reported once per pair of neighbours in address order); the same address on two unit
+    ids is fine."""
+    ordered = sorted(blocks, key=lambda b: (b[1], b[2]))
+    for (pname, punit, pa), (name, unit, a) in itertools.pairwise(ordered):
+        if unit == punit and a < pa + RESULT_BLOCK_SIZE:
             n = RESULT_BLOCK_SIZE - 1
+            where = "" if unit == default_unit else f" on result unit id {unit}"
             problems.add(f"loop {name}", "result_address",
-                         f"block {a}..{a + n} overlaps loop {pname} ({pa}..{pa + n})")
+                         f"block {a}..{a + n} overlaps loop {pname} ({pa}..{pa + n}){where}")

@@ -54,7 +54,7 @@ from stiction.simulate import LoopBank, LoopParams
 
 from . import _schema as s
 from ._schema import MISSING, Problems, Section
-from .config import RESULT_BLOCK_SIZE
+from .config import RESULT_BLOCK_SIZE, RESULT_LOOPS_PER_UNIT
 from .errors import ConfigError
 from .inputs.modbus import encode_values
 from .plcsim_opcua import POLICY_TYPES, OpcUaPlcServer, ServerSecurity
@@ -330,22 +330,47 @@ class PlcSim:
         else:
             await self.server.stop()
 
+MAX_RESULT_ADDRESS = (RESULT_LOOPS_PER_UNIT - 1) * RESULT_BLOCK_SIZE
+"""The last block start that :func:`gateway_config` fills on one unit id (65,500)."""
+
+
+def assign_result_blocks(loops: Sequence[dict[str, Any]], unit_id: int = 1) -> None:
+    """Give gateway-config loop dicts consecutive result blocks, as :func:`gateway_config`
+    does: 3,276 per unit id from ``unit_id`` on (``result_unit_id`` written only where it is
+    not ``unit_id``, i.e. not ``modbus_server.unit_id``). Replaces any they had."""
+    for i, lp in enumerate(loops):
+        unit, k = divmod(i, RESULT_LOOPS_PER_UNIT)
+        lp["result_address"] = k * RESULT_BLOCK_SIZE
+        lp.pop("result_unit_id", None)
+        if unit:
+            lp["result_unit_id"] = unit_id + unit
+
 
 def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None = None,
                    analysis_interval_s: float = 300.0, metrics_listen: str = "127.0.0.1:9108",
-                   result_listen: str = "127.0.0.1:5020",
+                   result_listen: str = "127.0.0.1:5020", result_unit_id: int = 1,
                    opcua_security: dict[str, Any] | None = None) -> dict[str, Any]:
     """The gateway config (as a YAML-ready dict) that reads every loop of ``cfg``.
+
+    Result blocks follow each other from address 0 on ``modbus_server.unit_id``
+    (``result_unit_id``); when a unit id's register space is full (3,276 loops) they go on
+    from address 0 of the next unit id, written as the loop's ``result_unit_id``. A loop
+    with its own ``result_address`` keeps it, on the unit id being filled.
 
     With ``protocol: opcua`` the device is an OPC UA one; its ``security`` section is
     ``opcua_security`` if given, else (for a secured plc-sim) one with the plc-sim's policy,
     mode, certificate and login, and the usual client paths (pki/client.der, pki/client.pem,
     pki/trusted/) to be created with ``stiction-gateway opcua-cert``."""
     loops: list[dict[str, Any]] = []
-    next_result = 0
+    unit, next_result = result_unit_id, 0
     for lp in cfg.loops:
         sc = lp.scenario
-        result_address = lp.result_address if lp.result_address is not None else next_result
+        if lp.result_address is not None:  # on the current unit id
+            result_address = lp.result_address
+        else:
+            if next_result > MAX_RESULT_ADDRESS:  # this unit id is full: the next one
+                unit, next_result = unit + 1, 0
+            result_address = next_result
         next_result = result_address + RESULT_BLOCK_SIZE
         loops.append({
             "name": lp.name, "device": "plc-sim",
@@ -357,13 +382,15 @@ def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None 
             "kp": sc.kp, "delay_s": sc.theta,
             "window_s": lp.window_s if lp.window_s is not None else 3600.0,
             "result_address": result_address,
+            **({"result_unit_id": unit} if unit != result_unit_id else {}),
         })
     sim_host, sim_port = cfg.listen
     out = {
         "gateway": {"analysis_interval_s": analysis_interval_s,
                     "time_scale": cfg.time_scale},
         "metrics": {"listen": metrics_listen},
-        "modbus_server": {"listen": result_listen, "unit_id": 1, "word_order": "big"},
+        "modbus_server": {"listen": result_listen, "unit_id": result_unit_id,
+                          "word_order": "big"},
         "devices": [{
             "name": "plc-sim", "protocol": "modbus",
             "host": host or sim_host, "port": port if port is not None else sim_port,

@@ -7,8 +7,9 @@ refused (exception 1, illegal function). It also counts the requests it served, 
 tests use to prove that the gateway coalesces its reads.
 
 :class:`ResultServer` is the gateway's result server: one 20-register block per loop at
-its ``result_address`` (docs/modbus-map.md), the same image in holding and input
-registers, refreshed from the :class:`~gateway.store.ResultStore` on every change.
+its ``result_address`` on its ``result_unit_id`` (docs/modbus-map.md), one image per unit
+id, the same image in holding and input registers, refreshed from the
+:class:`~gateway.store.ResultStore` on every change.
 
 Both servers are read-only: every write (function codes 5, 6, 15, 16, 22, 23) and every
 coil/discrete-input read is answered with exception 1 (illegal function).
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,24 +39,42 @@ READ_CODES = {3: "holding", 4: "input"}
 
 
 class RegisterServer:
-    """A Modbus TCP server answering reads from ``images[table]`` (uint16 arrays).
+    """A Modbus TCP server answering reads from uint16 register images, per unit id.
 
-    ``shared=True`` serves one image for both tables. Unit ids other than ``unit_id`` get
-    exception 0x0A (gateway path unavailable); ``unit_id=0`` answers every id. Writes are
-    refused with exception 1 (illegal function) and counted in ``refused_writes``."""
+    ``units`` maps each served unit id to its images by table (``{"holding": img,
+    "input": img}``; one array may serve both tables); the one-unit form
+    ``RegisterServer(images, unit_id=...)`` is ``units={unit_id: images}``. ``self.units``
+    may be replaced (or its images swapped) while serving, but only for the unit ids given
+    at construction: pymodbus fixes its devices when the server is built. Unit id 0 is the
+    catch-all: requests for a unit id without a device go to it, so ``unit_id=0`` answers
+    every id; any unit id not (or no longer) in ``self.units`` gets exception 0x0A (gateway
+    path unavailable). Writes are refused with exception 1 (illegal function) and counted
+    in ``refused_writes``."""
 
-    def __init__(self, images: dict[str, NDArray[np.uint16]], *, host: str, port: int,
-                 unit_id: int = 1, capacity: int | None = None) -> None:
-        self.images = images
+    def __init__(self, images: dict[str, NDArray[np.uint16]] | None = None, *, host: str,
+                 port: int, unit_id: int = 1, capacity: int | None = None,
+                 units: Mapping[int, dict[str, NDArray[np.uint16]]] | None = None) -> None:
+        if units is None:
+            if images is None:
+                raise TypeError("RegisterServer needs images or units")
+            units = {unit_id: images}
+        self.units: dict[int, dict[str, NDArray[np.uint16]]] = dict(units)
+        self.unit_id = unit_id if images is not None else min(self.units)
         self.requests = 0  # read requests answered from the image
         self.refused_writes = 0
         self.host, self.port = host, port
         # the address range pymodbus accepts; images may be swapped for larger ones up to it
-        size = capacity or max(len(img) for img in images.values())
-        devices = [self._device(unit_id, size, self._action)]
-        if unit_id != 0:
-            devices.append(self._device(0, size, self._wrong_unit))
+        size = capacity or max(len(img) for imgs in self.units.values()
+                               for img in imgs.values())
+        self.unit_ids = frozenset(self.units) | {0}  # the devices pymodbus knows
+        devices = [self._device(unit, size, self._action_for(unit))
+                   for unit in sorted(self.unit_ids)]
         self._server = ModbusTcpServer(devices, address=(host, port))
+
+    @property
+    def images(self) -> dict[str, NDArray[np.uint16]]:
+        """The images of the unit id given at construction (the one-unit form)."""
+        return self.units[self.unit_id]
 
     @staticmethod
     def _device(unit: int, size: int, action: object) -> SimDevice:
@@ -66,22 +85,29 @@ class RegisterServer:
         return SimDevice(id=unit, simdata=(bits, list(bits), block(), block()),
                          action=action)  # type: ignore[arg-type]
 
-    async def _action(self, function_code: int, start: int, address: int, count: int,  # noqa: PLR0917 (pymodbus SimAction)
-                      registers: list[int], values: object) -> ExcCodes | None:
+    def _action_for(self, unit: int) -> object:
+        async def action(function_code: int, start: int, address: int, count: int,  # noqa: PLR0917 (pymodbus SimAction)
+                         registers: list[int], values: object) -> ExcCodes | None:
+            return self._serve(unit, function_code, start, address, count, registers, values)
+
+        return action
+
+    def _serve(self, unit: int, function_code: int, start: int, address: int,  # noqa: PLR0917
+               count: int, registers: list[int], values: object) -> ExcCodes | None:
+        images = self.units.get(unit)
+        if images is None:  # a unit id nobody serves (any more)
+            return ExcCodes.GATEWAY_PATH_UNAVIABLE
         table = READ_CODES.get(function_code)
         if values is not None or table is None:  # any write, or a bit read
             self.refused_writes += values is not None
             return ExcCodes.ILLEGAL_FUNCTION
         self.requests += 1
-        img = self.images.get(table)
+        img = images.get(table)
         if img is None or address + count > len(img):
             return ExcCodes.ILLEGAL_ADDRESS
         off = address - start
         registers[off:off + count] = img[address:address + count].tolist()
         return None
-
-    async def _wrong_unit(self, *_: object) -> ExcCodes | None:
-        return ExcCodes.GATEWAY_PATH_UNAVIABLE
 
     async def start(self) -> None:
         await self._server.serve_forever(background=True)
@@ -114,30 +140,62 @@ def result_block(loop_result: LoopResult | None, *, code: int, word_order: str =
 
 
 class ResultServer:
-    """The gateway's read-only result server, a view of the result store."""
+    """The gateway's read-only result server, a view of the result store.
+
+    Each unit id used by some loop (``result_unit_id``, default ``modbus_server.unit_id``)
+    has its own register image, served alike as holding and input registers; other unit
+    ids get exception 0x0A. :meth:`rebind` serves a new loop list from then on, as long as
+    it uses no unit id the server was not built for (:meth:`serves`); otherwise the owner
+    builds a new server (pymodbus fixes its devices when the server is built)."""
 
     def __init__(self, settings: ResultServerSettings, loops: Sequence[LoopConfig],
                  store: ResultStore) -> None:
         self.settings = settings
-        self.image = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
+        self.images: dict[int, NDArray[np.uint16]] = {}
         host, port = settings.listen
-        self.server = RegisterServer({"holding": self.image, "input": self.image},
-                                     host=host, port=port, unit_id=settings.unit_id,
-                                     capacity=65536)  # a reload may move blocks anywhere
+        units = self.unit_ids_of(loops)
+        placeholder = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
+        self.server = RegisterServer(
+            units={u: {"holding": placeholder, "input": placeholder} for u in units},
+            host=host, port=port,
+            capacity=65536)  # a reload may move blocks anywhere
         self.rebind(loops, store)
 
+    def unit_of(self, loop: LoopConfig) -> int:
+        return self.settings.unit_id if loop.result_unit_id is None else loop.result_unit_id
+
+    def unit_ids_of(self, loops: Sequence[LoopConfig]) -> set[int]:
+        """The unit ids serving ``loops`` (always including modbus_server.unit_id)."""
+        return {self.unit_of(lp) for lp in loops} | {self.settings.unit_id}
+
+    def serves(self, loops: Sequence[LoopConfig]) -> bool:
+        """Whether :meth:`rebind` can serve ``loops`` (no unit id new to this server)."""
+        return self.unit_ids_of(loops) <= self.server.unit_ids
+
+    @property
+    def image(self) -> NDArray[np.uint16]:
+        """The register image of modbus_server.unit_id."""
+        return self.images[self.settings.unit_id]
+
     def rebind(self, loops: Sequence[LoopConfig], store: ResultStore) -> None:
-        """Serve ``loops`` from ``store`` from now on (start-up and reload): a fresh image,
-        so the blocks of removed loops vanish (reads there get exception 2 or zeros)."""
+        """Serve ``loops`` from ``store`` from now on (start-up and reload): fresh images,
+        so the blocks of removed loops vanish (reads there get exception 2 or zeros) and
+        unit ids no longer used get exception 0x0A."""
+        if not self.serves(loops):
+            raise ValueError(f"result unit ids {sorted(self.unit_ids_of(loops))} are not all "
+                             f"served (built for {sorted(self.server.unit_ids - {0})})")
         self.store = store
         self.addresses = np.array([lp.result_address for lp in loops], dtype=np.intp)
-        size = int(self.addresses.max()) + RESULT_BLOCK_SIZE if len(loops) else RESULT_BLOCK_SIZE
-        image = np.zeros(size, dtype=np.uint16)
-        self.image = image
+        units = [self.unit_of(lp) for lp in loops]
+        ends: dict[int, int] = dict.fromkeys(self.unit_ids_of(loops), RESULT_BLOCK_SIZE)
+        for u, a in zip(units, self.addresses.tolist(), strict=True):
+            ends[u] = max(ends[u], a + RESULT_BLOCK_SIZE)
+        images = {u: np.zeros(end, dtype=np.uint16) for u, end in ends.items()}
+        self.images = images
+        self._image_of = [images[u] for u in units]  # per loop, for refresh
         for i in range(len(loops)):
             self.refresh(i)
-        self.server.images["holding"] = image
-        self.server.images["input"] = image
+        self.server.units = {u: {"holding": img, "input": img} for u, img in images.items()}
 
         def on_change(i: int) -> None:
             if self.store is store:  # an old store (before a reload) no longer counts
@@ -151,7 +209,7 @@ class ResultServer:
 
     def refresh(self, i: int) -> None:
         a = int(self.addresses[i])
-        self.image[a:a + RESULT_BLOCK_SIZE] = result_block(
+        self._image_of[i][a:a + RESULT_BLOCK_SIZE] = result_block(
             self.store.results[i], code=self.store.verdict_code(i),
             word_order=self.settings.word_order)
 

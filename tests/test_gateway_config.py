@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import copy
 from pathlib import Path
 from typing import Any
@@ -13,7 +14,8 @@ from gateway.cli import main
 from gateway.config import load_config, parse_config
 from gateway.errors import ConfigError
 from gateway.inputs.modbus import ModbusDeviceOptions, ModbusPoint
-from gateway.plc_sim import load_sim_config
+from gateway.plc_sim import assign_result_blocks, load_sim_config, parse_sim_config
+from gateway.plc_sim import gateway_config as sim_gateway_config
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 
@@ -108,6 +110,87 @@ def test_overlapping_result_blocks() -> None:
     assert problems(data) == [
         "gw.yaml: loop FIC102: key 'result_address': block 10..29 overlaps loop FIC101 (0..19)",
     ]
+
+
+def test_result_unit_id_defaults_to_the_server_unit_id() -> None:
+    c = parse_config(cfg(), "gw.yaml")
+    assert [lp.result_unit_id for lp in c.loops] == [1, 1]
+    c = parse_config(cfg(modbus_server={"unit_id": 7}), "gw.yaml")
+    assert [lp.result_unit_id for lp in c.loops] == [7, 7]
+    data = cfg(modbus_server={"unit_id": 7})
+    data["loops"][1]["result_unit_id"] = 2
+    assert [lp.result_unit_id for lp in parse_config(data).loops] == [7, 2]
+
+
+def test_bad_result_unit_id() -> None:
+    data = cfg()
+    data["loops"][0]["result_unit_id"] = 0
+    data["loops"][1]["result_unit_id"] = "two"
+    data["loops"].append({**data["loops"][1], "name": "FIC103", "result_unit_id": 248,
+                          "result_address": 40})
+    assert problems(data) == [
+        "gw.yaml: loop FIC101: key 'result_unit_id': must be in 1..247, was 0",
+        "gw.yaml: loop FIC102: key 'result_unit_id': must be an integer, was 'two'",
+        "gw.yaml: loop FIC103: key 'result_unit_id': must be in 1..247, was 248",
+    ]
+
+
+def test_result_blocks_overlap_only_within_a_unit_id() -> None:
+    data = cfg()
+    data["loops"][1]["result_address"] = 0  # same address as FIC101 ...
+    data["loops"][1]["result_unit_id"] = 2  # ... on another unit id: fine
+    c = parse_config(data)
+    assert [(lp.result_unit_id, lp.result_address) for lp in c.loops] == [(1, 0), (2, 0)]
+    data["loops"][0]["result_unit_id"] = 1  # explicit default: same as leaving it out
+    assert parse_config(data).loops == c.loops
+    data["loops"].append({**data["loops"][1], "name": "FIC103", "result_address": 10})
+    data["loops"].append({**data["loops"][1], "name": "FIC104", "result_address": 5,
+                          "result_unit_id": 1})
+    assert problems(data) == [
+        "gw.yaml: loop FIC104: key 'result_address': block 5..24 overlaps loop FIC101 (0..19)",
+        "gw.yaml: loop FIC103: key 'result_address': block 10..29 overlaps loop FIC102 "
+        "(0..19) on result unit id 2",
+    ]
+
+
+def test_ten_thousand_loops_over_four_unit_ids() -> None:
+    data = cfg()
+    template = data["loops"][0]
+    loops = [{**template, "name": f"L{i:05d}",
+              "op": {"address": 4 * (i % 2000), "type": "float32"},
+              "pv": {"address": 4 * (i % 2000) + 2, "type": "float32"}}
+             for i in range(10_000)]
+    assign_result_blocks(loops, unit_id=1)
+    data["loops"] = loops
+    c = parse_config(data)
+    assert len(c.loops) == 10_000
+    per_unit = collections.Counter(lp.result_unit_id for lp in c.loops)
+    assert per_unit == {1: 3276, 2: 3276, 3: 3276, 4: 172}
+    assert (c.loops[3275].result_unit_id, c.loops[3275].result_address) == (1, 65500)
+    assert (c.loops[3276].result_unit_id, c.loops[3276].result_address) == (2, 0)
+    assert "result_unit_id" not in loops[0]  # the default unit id is left implicit
+    # all on one unit id: refused, every loop past the register space named
+    for lp in loops:
+        lp.pop("result_unit_id", None)
+    got = problems(data)
+    assert len(got) == 10_000 - 3276
+    assert got[0] == ("gw.yaml: loop L03276: key 'result_address': block 0..19 overlaps "
+                      "loop L00000 (0..19)")
+
+
+def test_plc_sim_gateway_config_spills_to_further_unit_ids() -> None:
+    sim = parse_sim_config({"listen": "127.0.0.1:5502", "loops": [
+        {"name": f"L{i}", "scenario": "healthy", "noise": 0.05} for i in range(3277)]})
+    data = sim_gateway_config(sim)
+    assert data["modbus_server"]["unit_id"] == 1
+    assert "result_unit_id" not in data["loops"][3275]
+    assert data["loops"][3275]["result_address"] == 65500
+    assert (data["loops"][3276]["result_unit_id"], data["loops"][3276]["result_address"]) \
+        == (2, 0)
+    c = parse_config(data)
+    assert {lp.result_unit_id for lp in c.loops} == {1, 2}
+    small = sim_gateway_config(load_sim_config(CONFIGS / "plc-sim.yaml"))
+    assert not any("result_unit_id" in lp for lp in small["loops"])
 
 
 def test_loop_naming_an_unknown_device() -> None:

@@ -27,9 +27,9 @@ NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0
                    stiction_index=0.01)
 
 
-def _loop(name: str, address: int) -> LoopConfig:
+def _loop(name: str, address: int, unit: int | None = None) -> LoopConfig:
     point = PointConfig(ModbusPoint(0, "float32"))
-    return LoopConfig(name, "plc", point, point, result_address=address)
+    return LoopConfig(name, "plc", point, point, result_address=address, result_unit_id=unit)
 
 
 def _store() -> ResultStore:
@@ -120,6 +120,92 @@ def test_result_server_serves_blocks_and_refuses_writes() -> None:
             assert wrong.exception_code == 0x0A
             past = await client.read_input_registers(110, count=20, device_id=1)
             assert past.isError()
+        finally:
+            client.close()
+            await server.stop()
+
+    run(go(), 30)
+
+
+def test_result_server_serves_each_unit_id_its_own_blocks() -> None:
+    st = _store()
+    # FIC101 on the default unit id 1, FIC401 at the same address on unit id 2,
+    # TIC301 on unit id 3 further up
+    loops = [_loop("FIC101", 0), _loop("FIC401", 0, unit=2), _loop("TIC301", 40, unit=3)]
+    settings = ResultServerSettings(listen=("127.0.0.1", 0), unit_id=1)
+
+    async def go() -> None:
+        server = ResultServer(settings, loops, st)
+        assert sorted(server.images) == [1, 2, 3]
+        await server.start()
+        client = AsyncModbusTcpClient("127.0.0.1", port=server.port, timeout=2, retries=0)
+        try:
+            assert await client.connect()
+            one = await client.read_input_registers(0, count=20, device_id=1)
+            two = await client.read_input_registers(0, count=20, device_id=2)
+            two_h = await client.read_holding_registers(0, count=20, device_id=2)
+            assert _decode_block(one.registers)["code"] == 4  # FIC101
+            assert _decode_block(two.registers)["code"] == 2  # FIC401
+            assert _decode_block(two.registers)["fill"] == pytest.approx(0.25)
+            assert two_h.registers == two.registers
+            three = await client.read_holding_registers(40, count=20, device_id=3)
+            assert three.registers == [0] * 20  # TIC301: no result yet
+            assert (await client.read_holding_registers(60, count=1, device_id=2)).isError()
+            # a write to the second unit id is refused, nothing changes
+            for rsp in [await client.write_register(0, 9, device_id=2),
+                        await client.write_registers(0, [1, 2], device_id=2)]:
+                assert rsp.isError()
+                assert rsp.exception_code == 1
+            assert server.server.refused_writes == 2
+            assert (await client.read_input_registers(0, count=20, device_id=2)
+                    ).registers == two.registers
+            # a new result reaches its own unit id only
+            st.set_result(2, STICKY, t=1_700_000_900.0, window_fill=1.0, samples=1)
+            three = await client.read_input_registers(40, count=20, device_id=3)
+            assert _decode_block(three.registers)["code"] == 4
+            assert (await client.read_input_registers(40, count=1, device_id=1)).isError()
+            # unit ids no loop uses: exception 0x0A, reads and writes alike
+            for unit in (4, 9, 247):
+                rsp = await client.read_input_registers(0, count=2, device_id=unit)
+                assert rsp.isError()
+                assert rsp.exception_code == 0x0A
+            rsp = await client.write_register(0, 9, device_id=9)
+            assert rsp.isError()
+            assert rsp.exception_code == 0x0A
+            # rebound without unit id 3 (e.g. a reload removed TIC301's unit id): gone
+            assert server.serves(loops[:2])
+            assert not server.serves([*loops, _loop("X", 0, unit=5)])
+            with pytest.raises(ValueError, match="not all served"):
+                server.rebind([*loops, _loop("X", 0, unit=5)], st)
+            server.rebind([*loops[:2], _loop("TIC301", 40, unit=2)], st)
+            rsp = await client.read_input_registers(40, count=20, device_id=3)
+            assert rsp.isError()
+            assert rsp.exception_code == 0x0A
+            moved = await client.read_input_registers(40, count=20, device_id=2)
+            assert _decode_block(moved.registers)["code"] == 4
+        finally:
+            client.close()
+            await server.stop()
+
+    run(go(), 30)
+
+
+def test_result_server_with_unit_id_0_answers_every_unserved_id() -> None:
+    st = _store()
+    loops = [_loop("FIC101", 0), _loop("FIC401", 0, unit=2)]
+    settings = ResultServerSettings(listen=("127.0.0.1", 0), unit_id=0)
+
+    async def go() -> None:
+        server = ResultServer(settings, loops, st)
+        await server.start()
+        client = AsyncModbusTcpClient("127.0.0.1", port=server.port, timeout=2, retries=0)
+        try:
+            assert await client.connect()
+            for unit in (0, 1, 9):  # the catch-all: FIC101
+                rsp = await client.read_input_registers(0, count=20, device_id=unit)
+                assert _decode_block(rsp.registers)["code"] == 4
+            rsp = await client.read_input_registers(0, count=20, device_id=2)
+            assert _decode_block(rsp.registers)["code"] == 2
         finally:
             client.close()
             await server.stop()

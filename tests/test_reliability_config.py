@@ -235,3 +235,67 @@ def test_reload_that_fails_while_building_keeps_polling(
     assert out["polls"] >= 5
     assert any("reload failed, keeping the running config" in r.getMessage()
                for r in caplog.records)
+
+
+@pytest.mark.timeout(60)
+def test_reload_moves_loops_between_result_unit_ids(tmp_path: Path) -> None:
+    out: dict[str, Any] = {}
+
+    async def read(port: int, unit: int, address: int) -> list[int] | int:
+        """The 20 registers of a block, or the exception code."""
+        client = AsyncModbusTcpClient("127.0.0.1", port=port, timeout=2, retries=0)
+        await client.connect()
+        try:
+            rsp = await client.read_holding_registers(address, count=20, device_id=unit)
+            return int(rsp.exception_code) if rsp.isError() else list(rsp.registers)
+        finally:
+            client.close()
+
+    async def go() -> None:
+        plc = await ScriptedPlc(64).start()
+        feeder = asyncio.create_task(feed(plc, 0.02, _wiggle))
+        dev = device("plc", plc.port, poll=0.05)
+        a, b = loop("A", "plc", 0, 0), loop("B", "plc", 4, 20)
+        one = _write(tmp_path / "one.yaml", raw_config([dev], [a, b], analysis_interval_s=0.5))
+        # B moves to unit id 2 (same address as A), C is new there: a unit id the running
+        # server has no device for
+        b2, c2 = {**b, "result_address": 0, "result_unit_id": 2}, \
+            {**loop("C", "plc", 8, 20), "result_unit_id": 2}
+        two = _write(tmp_path / "two.yaml",
+                     raw_config([dev], [a, b2, c2], analysis_interval_s=0.5))
+        async with Gateway(load_config(one), registry=CollectorRegistry(), analyze=FAKE,
+                           serve_http=False) as gw:
+            await until(lambda: gw.scheduler.rounds >= 2)
+            out["seq_b"] = gw.store.results[gw.store.index["B"]].seq
+            out["unit2_before"] = await read(gw.result_port, 2, 0)
+            first = gw.result_server
+            assert await gw.reload(two)
+            out["restarted"] = gw.result_server is not first
+            out["b_on_2"] = await read(gw.result_port, 2, 0)
+            out["c_on_2"] = await read(gw.result_port, 2, 20)
+            out["a_on_1"] = await read(gw.result_port, 1, 0)
+            out["old_b_on_1"] = await read(gw.result_port, 1, 20)
+            second = gw.result_server
+            assert await gw.reload(one)  # back: unit id 2 no longer used
+            out["rebound"] = gw.result_server is second
+            out["unit2_after"] = await read(gw.result_port, 2, 0)
+            out["b_back_on_1"] = await read(gw.result_port, 1, 20)
+        feeder.cancel()
+        await plc.stop()
+
+    asyncio.run(asyncio.wait_for(go(), 50))
+    assert out["unit2_before"] == 0x0A
+    assert out["restarted"]
+    b_on_2 = out["b_on_2"]
+    assert isinstance(b_on_2, list)
+    assert b_on_2[0] == 1  # B's result carried over (not_oscillating) ...
+    assert b_on_2[1] == out["seq_b"] % 65536  # ... with its sequence number
+    assert isinstance(out["c_on_2"], list)
+    assert out["c_on_2"][0] == 0  # C: new, no result yet
+    assert isinstance(out["a_on_1"], list)
+    assert out["a_on_1"][0] == 1
+    assert out["old_b_on_1"] == 2  # B's old block on unit id 1 is gone (illegal address)
+    assert out["rebound"]  # no new unit id: the running server was rebound
+    assert out["unit2_after"] == 0x0A
+    assert isinstance(out["b_back_on_1"], list)
+    assert out["b_back_on_1"][0] == 1
