@@ -246,7 +246,20 @@ class PhysicalValve:
 
 
 # ---------------------------------------------------------------------------------------------
-# Choudhury, Thornhill & Shah (2005) two-parameter model
+# Two-parameter (S, J) models
+
+
+def _validate_s_j(model: ChoudhuryValve | KanoValve) -> None:
+    """Check S >= 0, 0 <= J <= S and store both as arrays on the frozen dataclass."""
+    s = v.non_negative("s", model.s)
+    j = v.non_negative("j", model.j)
+    if np.any(j > s):
+        raise ParameterError("j", f"must not exceed s (j={model.j!r}, s={model.s!r})")
+    object.__setattr__(model, "s", s)
+    object.__setattr__(model, "j", j)
+
+
+# Choudhury, Thornhill & Shah (2005)
 
 
 class ChoudhuryState(NamedTuple):
@@ -274,12 +287,7 @@ class ChoudhuryValve:
     j: ArrayLike
 
     def __post_init__(self) -> None:
-        s = v.non_negative("s", self.s)
-        j = v.non_negative("j", self.j)
-        if np.any(j > s):
-            raise ParameterError("j", f"must not exceed s (j={self.j!r}, s={self.s!r})")
-        object.__setattr__(self, "s", s)
-        object.__setattr__(self, "j", j)
+        _validate_s_j(self)
 
     def initial_state(self, u0: ArrayLike) -> ChoudhuryState:
         u = np.array(u0, dtype=np.float64, copy=True)
@@ -332,12 +340,7 @@ class KanoValve:
     j: ArrayLike
 
     def __post_init__(self) -> None:
-        s = v.non_negative("s", self.s)
-        j = v.non_negative("j", self.j)
-        if np.any(j > s):
-            raise ParameterError("j", f"must not exceed s (j={self.j!r}, s={self.s!r})")
-        object.__setattr__(self, "s", s)
-        object.__setattr__(self, "j", j)
+        _validate_s_j(self)
 
     def initial_state(self, u0: ArrayLike) -> KanoState:
         u = np.array(u0, dtype=np.float64, copy=True)
