@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
-import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ from asyncua import ua
 from asyncua.ua.uaerrors import UaError
 from cryptography.hazmat.primitives.serialization import Encoding, PublicFormat
 
+from .._schema import number
 from ..opcua_cert import application_uri_of, load_certificate_file, load_private_key_file
 
 __all__ = [
@@ -142,20 +142,6 @@ def _string(value: Any) -> str:
     if not isinstance(value, str) or not value.strip():
         raise TypeError("must be a non-empty string")
     return value
-
-
-def _number(positive: bool = False) -> Callable[[Any], float]:
-    def conv(value: Any) -> float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise TypeError("must be a number")
-        out = float(value)
-        if not math.isfinite(out):
-            raise ValueError("must be finite")
-        if positive and out <= 0:
-            raise ValueError("must be > 0")
-        return out
-
-    return conv
 
 
 def _count(value: Any) -> int:
@@ -351,8 +337,8 @@ def parse_opcua_device(
     protocol = r.get("protocol", _string, required=True)
     if protocol is not None and protocol != "opcua":
         r.error("protocol", f"must be 'opcua' here, was {protocol!r}")
-    poll = r.get("poll_interval_s", _number(positive=True), required=True)
-    timeout = r.get("timeout_s", _number(positive=True), required=False,
+    poll = r.get("poll_interval_s", number(positive=True), required=True)
+    timeout = r.get("timeout_s", number(positive=True), required=False,
                     default=DEFAULT_TIMEOUT_S)
     r.unknown(DEVICE_KEYS)
     cfg = _own_keys(r, raw, prefix=prefix, base_dir=base_dir, problems=problems)
@@ -418,8 +404,8 @@ def parse_opcua_point(
                         f"{{node: \"ns=2;s={loop}.{role.upper()}\"}}, was {_describe(raw)}")
         return None, problems
     node = r.get("node", parse_node_id, required=True)
-    scale = r.get("scale", _number(), required=False, default=1.0)
-    offset = r.get("offset", _number(), required=False, default=0.0)
+    scale = r.get("scale", number(), required=False, default=1.0)
+    offset = r.get("offset", number(), required=False, default=0.0)
     if scale == 0.0:
         r.error("scale", "must not be 0")
     r.unknown(POINT_KEYS)
