@@ -5,6 +5,14 @@ J. Process Control 13, 91-100: the zero crossings of the ACF of an oscillating s
 evenly spaced, and the oscillation is regular when the mean period (twice the mean crossing
 interval) exceeds three standard deviations of the individual periods:
 ``r = mean(Tp) / (3 std(Tp)) > 1``. The ACF filters out noise, so this works on raw data.
+
+Significance. The ACF of white noise also crosses zero, at random, and now and then evenly
+enough to pass the regularity test (a settled healthy loop: OP is noise, and 30 % of its
+half-hour windows used to come out "oscillating" with a period of 3-5 samples). So the
+oscillation must also be significant: the ACF lobe one period out (between the second and
+third crossings) must reach ``SIGNIFICANCE / sqrt(n)``; for white noise the ACF at a lag has
+standard deviation about ``1 / sqrt(n)``. Measured lobe heights x sqrt(n): settled healthy
+loops 0-2.5, the paper's limit cycles 10-100, the plant records' sticky flow loop 4-11.
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ __all__ = ["Oscillation", "acf", "detect_oscillation"]
 MAX_CROSSINGS = 11  # Thornhill uses the first ten intervals
 MIN_CROSSINGS = 4  # at least two period estimates
 MIN_PERIOD = 8.0  # samples: faster oscillations cannot be told triangle from sine
+SIGNIFICANCE = 3.0  # the ACF lobe at one period must reach this / sqrt(n)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,4 +83,11 @@ def detect_oscillation(x: FloatArray, *, min_regularity: float = 1.0) -> Oscilla
         return Oscillation(False, tp, reg,
                            f"no regular oscillation: ACF zero crossings irregular "
                            f"(regularity {reg:.2f} <= {min_regularity:g})")
+    lobe = seg[int(np.ceil(z[1])) - 1 : int(np.floor(z[2]))]
+    height = float(np.max(np.abs(lobe))) * np.sqrt(n) if lobe.size else 0.0
+    if height < SIGNIFICANCE:
+        return Oscillation(False, None, reg,
+                           f"no significant oscillation: the ACF one period out is "
+                           f"{height:.1f}/sqrt(n), under the {SIGNIFICANCE:g}/sqrt(n) that "
+                           "noise alone can reach")
     return Oscillation(True, tp, reg, f"regular oscillation (regularity {min(reg, 99.0):.1f})")

@@ -72,6 +72,28 @@ def test_white_noise_does_not_oscillate() -> None:
     assert "irregular" in osc.reason or "crosses zero" in osc.reason
 
 
+def test_white_noise_never_passes_as_an_oscillation() -> None:
+    """Now and then the ACF zero crossings of noise are even enough to pass Thornhill's
+    regularity test; the significance test of the ACF lobe turns those down."""
+    rng = np.random.default_rng(7)
+    for n in (600, 1800, 3600):
+        for _ in range(100):
+            osc = detect_oscillation(rng.normal(0, 1, n))
+            assert not osc.oscillating, osc
+
+
+def test_a_noisy_real_oscillation_is_significant() -> None:
+    """A sine as strong as the noise (SD 0.71 vs 1): whenever its crossings are regular,
+    the lobe test lets it through (it stands at about 0.33 sqrt(n) = 20)."""
+    t = np.arange(3600.0)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        osc = detect_oscillation(np.sin(2 * np.pi * t / 200.0) + rng.normal(0, 1, t.size))
+        assert "significant" not in osc.reason
+        if osc.oscillating:
+            assert osc.period == pytest.approx(200.0, rel=0.05)
+
+
 def test_a_ramp_does_not_oscillate() -> None:
     assert not detect_oscillation(0.01 * T + RNG.normal(0, 0.01, T.size)).oscillating
 
