@@ -27,6 +27,7 @@ MIN_GAP_LIMIT = 5
 SATURATION_BAND = 0.005  # fraction of the OP range counted as "at a limit"
 MAX_SATURATED_FRACTION = 0.20
 MAX_FROZEN_FRACTION = 0.50  # longest run of identical values, fraction of the window
+OP_MOVED_FRACTION = 0.05  # OP travel (of its range) during a frozen PV worth pointing out
 MIN_LEVELS = 10  # distinct PV levels over its range below which PV is "quantised"
 WARN_LEVELS = 40
 
@@ -51,12 +52,24 @@ def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts, ends - starts
 
 
-def _longest_constant_run(x: FloatArray) -> int:
+def _longest_constant_run(x: FloatArray) -> tuple[int, int]:
+    """Start and length of the longest run of identical consecutive samples."""
     same = np.diff(x) == 0
     if not same.any():
-        return 1
-    _, lengths = _runs(same)
-    return int(lengths.max()) + 1
+        return 0, 1
+    starts, lengths = _runs(same)
+    k = int(np.argmax(lengths))
+    return int(starts[k]), int(lengths[k]) + 1
+
+
+def _op_moved(op: FloatArray, start: int, run: int, span: float) -> str:
+    """The hint when PV stood still while OP travelled: a PV frozen while the controller
+    drives the valve over ``OP_MOVED_FRACTION`` of its span is not just a dead tag."""
+    travel = float(np.ptp(op[start : start + run]))
+    if travel < OP_MOVED_FRACTION * span:
+        return ""
+    return (f" while OP moved {100.0 * travel / span:.0f} % of its range: valve stuck or "
+            "not responding, line blocked, or the PV transmitter dead or at its cut-off")
 
 
 def _levels(x: FloatArray) -> float:
@@ -127,13 +140,17 @@ def check_quality(
                        f"{MIN_SAMPLES}")
 
     # -- flat or frozen
+    span = op_range[1] - op_range[0]
     for name, x in (("OP", op), ("PV", pv)):
         if float(np.ptp(x)) <= 1e-9 * max(1.0, float(np.max(np.abs(x)))):
+            if name == "PV" and (hint := _op_moved(op, 0, op.size, span)):
+                return bad(f"PV is constant{hint}")
             return bad(f"{name} is constant (flat signal: loop in manual or tag frozen?)")
-        run = _longest_constant_run(x)
+        at, run = _longest_constant_run(x)
         if run > MAX_FROZEN_FRACTION * x.size:
+            hint = _op_moved(op, at, run, span) if name == "PV" else ""
             return bad(f"{name} frozen: {run} consecutive identical samples "
-                       f"({run / x.size:.0%} of the window)")
+                       f"({run / x.size:.0%} of the window){hint}")
 
     # -- saturated OP
     lo, hi = op_range

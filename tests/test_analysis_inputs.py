@@ -141,6 +141,25 @@ def test_frozen_pv(loop: tuple[np.ndarray, np.ndarray]) -> None:
     _bad(analyze(op, pv, ts=1.0), "PV frozen")
 
 
+def test_pv_still_while_op_ramps_points_at_the_valve() -> None:
+    """Plant record 2411FIC10104: the flow reads 0 while OP ramps 5 -> 80 %. Still
+    bad_data (a dead transmitter looks the same), but the reason names the valve."""
+    rng = np.random.default_rng(0)
+    op = np.linspace(5.0, 80.0, 750) + rng.normal(0, 0.05, 750)
+    pv = np.zeros(750)
+    pv[:100] = np.abs(rng.normal(0.4, 0.1, 100))
+    a = analyze(op, pv, ts=10.0)
+    _bad(a, "PV frozen")
+    assert "while OP moved 65 % of its range: valve stuck" in a.reason
+
+
+def test_frozen_pv_with_op_still_is_a_tag_problem() -> None:
+    rng = np.random.default_rng(1)
+    op = 40.0 + rng.normal(0, 0.2, 750)  # OP moves ~1.5 % peak to peak: no valve hint
+    a = analyze(op, np.full(750, 3.0), ts=10.0)
+    _bad(a, "PV is constant (flat signal: loop in manual or tag frozen?)")
+
+
 def test_saturated_op(loop: tuple[np.ndarray, np.ndarray]) -> None:
     op, pv = loop
     _bad(analyze(np.clip(op, 0.0, 45.0), pv, ts=1.0, op_range=(0.0, 45.0)), "OP saturated")
