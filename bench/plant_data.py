@@ -5,6 +5,9 @@ no delay - because loop type must not be a feature (stiction records are mostly 
 the others mostly level loops). A record counts as predicted-stiction when the verdict is
 ``stiction``. Scores: confusion matrix over records, per loop type, and per tag (each tag
 voted by the majority of its records, ties counted as stiction), with balanced accuracy.
+The target is judged on the majority vote. Beside it, "any record": a tag is called sticky
+when any of its records is, which is how the gateway is used (an alert on any window that
+says stiction; a quiet day's ``not_oscillating`` is no evidence against a sticky valve).
 """
 
 from __future__ import annotations
@@ -75,6 +78,8 @@ def evaluate(verbose: bool = True) -> dict[str, float]:
     tag_pairs = [(p[0][0], sum(x[1] for x in p) * 2 >= len(p)) for p in by_tag.values()]
     out["tags"] = _show("tags (majority vote)", tag_pairs)
     out["tags_fp"] = float(_matrix(tag_pairs)[2])
+    any_pairs = [(p[0][0], any(x[1] for x in p)) for p in by_tag.values()]
+    out["tags_any"] = _show("tags (any record)", any_pairs)
     if verbose:
         print("per tag (label: records predicted stiction / records):")
         for tag, p in sorted(by_tag.items()):
@@ -91,7 +96,8 @@ def main() -> None:
     res = evaluate()
     target = 0.85
     status = "reached" if res["tags"] >= target else "NOT reached"
-    print(f"per-tag balanced accuracy {res['tags']:.2f} (target {target}: {status})")
+    print(f"per-tag balanced accuracy {res['tags']:.2f} (target {target}: {status}); "
+          f"{res['tags_any']:.2f} counting a tag sticky when any of its records is")
 
 
 if __name__ == "__main__":
