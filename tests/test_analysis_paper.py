@@ -103,9 +103,12 @@ def test_stiction_detected_where_the_paper_was_clear(rows: list[ReproRow]) -> No
 
 
 @pytest.mark.parametrize("tau", [450.0, 480.0])
-@pytest.mark.parametrize("noise", [0.0, 0.1])
-def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float) -> None:
-    rows = reproduce(noise=noise, seed=2,
+@pytest.mark.parametrize(("noise", "seed"), [(0.0, 2), (0.05, 1), (0.05, 2), (0.1, 1),
+                                             (0.1, 2), (0.1, 3), (0.2, 3)])
+def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float, seed: int) -> None:
+    """Seeds where the noisy SI reaches the stiction band (>= 0.6) are among these: 0.05/1,
+    0.05/2, 0.1/1, 0.1/2, 0.2/3 (SI 0.62-0.73 on at least one tau)."""
+    rows = reproduce(noise=noise, seed=seed,
                      rows=[p for p in PAPER_ROWS if p.case == f"tau={tau:.0f}"])
     (r,) = rows
     a = r.assessment
