@@ -7,13 +7,19 @@ OP-PV plot: the controller output ramps (integral action on a persistent error) 
 valve, and so PV, stays put; then the valve breaks away and PV jumps; the controller,
 seeing the jump it did not cause, turns back. Per candidate jump we check exactly that:
 
-1. **Slip.** PV changes fast: the difference of the means of the ``M`` samples after and
+The search runs on two scales, ``m = M`` and ``2 M`` samples (``SCALES``): with slow
+sampling or a valve that slips in two steps, the slip spans more than ``M`` samples and the
+``M``-sample means see only part of it. Episodes found on both scales count once.
+
+1. **Slip.** PV changes fast: the difference of the means of the ``m`` samples after and
    before a point is at least ``JUMP_RANGE_FRACTION`` of PV's (2-98 %) range and at least
    ``JUMP_NOISE`` standard errors of that difference under white measurement noise.
-2. **Stuck before.** Going back from the slip, PV (``M``-sample running mean) stays within
-   ``STUCK_BAND`` of the jump of its pre-slip level for at least ``MIN_STUCK`` samples.
+2. **Stuck before.** Going back from the slip, PV (``m``-sample running mean) stays within
+   ``STUCK_BAND`` of the jump of its pre-slip level. Within that still stretch, the force
+   that broke the valve was built since OP's last turn: the stuck phase starts where OP was
+   furthest from its pre-slip value, and must last at least ``3 m`` samples.
 3. **OP built the force.** Over that stuck phase OP travelled monotonically (net change at
-   least ``MONOTONE`` of its total variation, on ``M``-sample means) and by at least
+   least ``MONOTONE`` of its total variation, on ``m``-sample means) and by at least
    ``OP_NOISE`` OP noise SDs: the valve stood still while its input moved.
 4. **OP did not cause the jump.** Across the slip, OP moved less than its travel during the
    stuck phase, and not in the same direction as that travel by more than a quarter of it:
@@ -22,8 +28,9 @@ seeing the jump it did not cause, turns back. Per candidate jump we check exactl
 5. **One process gain.** The apparent gain sign, sign(PV jump) x sign(OP travel), is the
    same for every accepted episode of the window: a real valve has one gain sign.
 
-Thresholds are physical fractions chosen once; ``OP_NOISE``, ``MONOTONE`` and the OP-step
-rule were checked against the plant records of ``../shared/data/plant-stictiongpt``
+Thresholds are physical fractions chosen once; ``OP_NOISE``, ``MONOTONE``, the OP-step
+rule, the second scale and the stuck phase from OP's turn were checked against the plant
+records of ``../shared/data/plant-stictiongpt``
 (see ``bench/plant_data.py``), so they are not independent of that data.
 """
 
@@ -40,10 +47,10 @@ from ._validate import FloatArray
 __all__ = ["Episode", "StickSlip", "stick_slip"]
 
 M = 5
+SCALES = (M, 2 * M)
 JUMP_RANGE_FRACTION = 0.3
 JUMP_NOISE = 8.0
 STUCK_BAND = 0.5
-MIN_STUCK = 3 * M
 MONOTONE = 0.7
 OP_NOISE = 10.0
 SAME_WAY_KICK = 0.25
@@ -72,11 +79,11 @@ class StickSlip:
         return bool(self.episodes) and self.consistent
 
 
-def _means(x: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Prefix sums of ``x`` and its centred ``M``-sample running mean (ends held)."""
+def _means(x: FloatArray, m: int) -> tuple[FloatArray, FloatArray]:
+    """Prefix sums of ``x`` and its centred ``m``-sample running mean (ends held)."""
     c = np.concatenate(([0.0], np.cumsum(x)))
-    v = (c[M:] - c[:-M]) / M
-    h = M // 2
+    v = (c[m:] - c[:-m]) / m
+    h = m // 2
     out = np.empty(x.size)
     out[h : h + v.size] = v
     out[:h] = v[0]
@@ -84,47 +91,63 @@ def _means(x: FloatArray) -> tuple[FloatArray, FloatArray]:
     return c, out
 
 
-def _candidates(a: FloatArray, thr: float) -> list[int]:
-    """Positions of the largest ``a`` above ``thr``, at least ``2 M`` apart."""
+def _candidates(a: FloatArray, thr: float, m: int) -> list[int]:
+    """Positions of the largest ``a`` above ``thr``, at least ``2 m`` apart."""
     picked: list[int] = []
     for i in np.argsort(-a).tolist():
         if a[i] < thr:
             break
-        if all(abs(i - j) >= 2 * M for j in picked):
+        if all(abs(i - j) >= 2 * m for j in picked):
             picked.append(i)
     return sorted(picked)
 
 
 def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
     """Find stick-slip episodes in a window of OP and PV (equal-length, finite)."""
+    found: list[Episode] = []
+    for m in SCALES:
+        for e in _episodes(op, pv, m):
+            if all(abs(e.at - f.at) >= 2 * m for f in found):
+                found.append(e)
+    found.sort(key=lambda e: e.at)
+    signs = {math.copysign(1.0, e.jump) * math.copysign(1.0, e.op_travel) for e in found}
+    return StickSlip(tuple(found), len(signs) <= 1)
+
+
+def _episodes(op: FloatArray, pv: FloatArray, m: int) -> list[Episode]:
+    """The episodes seen with ``m``-sample means on either side of the slip."""
     n = op.size
-    if n < 2 * M + MIN_STUCK + 2:
-        return StickSlip((), True)
-    cy, ys = _means(pv)
-    cu, us = _means(op)
-    t = np.arange(M, n - M + 1)
-    dy = (cy[t + M] - 2.0 * cy[t] + cy[t - M]) / M  # mean after - mean before
-    du = (cu[t + M] - 2.0 * cu[t] + cu[t - M]) / M
+    if n < 2 * m + 3 * m + 2:
+        return []
+    cy, ys = _means(pv, m)
+    cu, us = _means(op, m)
+    t = np.arange(m, n - m + 1)
+    dy = (cy[t + m] - 2.0 * cy[t] + cy[t - m]) / m  # mean after - mean before
+    du = (cu[t + m] - 2.0 * cu[t] + cu[t - m]) / m
     p2, p98 = np.percentile(pv, [2, 98])
     rng = float(p98 - p2)
-    thr = max(JUMP_NOISE * noise_sd(pv) * math.sqrt(2.0 / M), JUMP_RANGE_FRACTION * rng)
+    thr = max(JUMP_NOISE * noise_sd(pv) * math.sqrt(2.0 / m), JUMP_RANGE_FRACTION * rng)
     if thr <= 0:
-        return StickSlip((), True)
+        return []
     sd_u = noise_sd(op)
     found: list[Episode] = []
-    for i in _candidates(np.abs(dy), thr):
+    for i in _candidates(np.abs(dy), thr, m):
         at = int(t[i])
         d = float(dy[i])
-        pre = float((cy[at] - cy[at - M]) / M)
+        pre = float((cy[at] - cy[at - m]) / m)
         # the stuck phase: back from the slip while PV stays near its pre-slip level
-        away = np.flatnonzero(np.abs(ys[: at - M + 1] - pre) > STUCK_BAND * abs(d))
+        away = np.flatnonzero(np.abs(ys[: at - m + 1] - pre) > STUCK_BAND * abs(d))
         start = int(away[-1]) + 1 if away.size else 0
-        stuck = at - M - start
-        if stuck < MIN_STUCK:
+        # the force was built since OP's last turn: its extreme (furthest from the pre-slip
+        # OP) while PV stood still
+        end = at - m
+        lo = min(start + m // 2, end)
+        lo += int(np.argmax(np.abs(us[end] - us[lo : end + 1])))
+        stuck = end - lo
+        if stuck < 3 * m:
             continue
-        lo = min(start + M // 2, at - M)
-        travel = float(us[at - M] - us[lo])
-        path = us[lo : at - M + 1 : M]
+        travel = float(us[end] - us[lo])
+        path = us[lo : end + 1 : m]
         tv = float(np.sum(np.abs(np.diff(path)))) if path.size > 1 else 0.0
         if tv <= 0 or abs(travel) < MONOTONE * tv or abs(travel) < OP_NOISE * sd_u:
             continue
@@ -135,5 +158,4 @@ def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
                 and abs(step) >= SAME_WAY_KICK * abs(travel):
             continue
         found.append(Episode(at, d, travel, step, stuck))
-    signs = {math.copysign(1.0, e.jump) * math.copysign(1.0, e.op_travel) for e in found}
-    return StickSlip(tuple(found), len(signs) <= 1)
+    return found

@@ -50,9 +50,14 @@ def test_every_paper_row_is_reproduced(rows: list[ReproRow]) -> None:
 
 
 def _confidently_wrong(r: ReproRow) -> bool:
+    """Wrong sizes given with a stiction verdict. Every paper row's valve is sticky, so a
+    stiction verdict with no sizes at all (stick-slip seen, no limit cycle to size it from)
+    is not wrong."""
     a = r.assessment
     if a.verdict != Verdict.STICTION:
         return False
+    if a.fd is None and a.fs is None:
+        return "not sized" not in a.reason
     return (a.fd is None or abs(a.fd / r.paper.fd_true - 1) >= 0.05
             or (a.fs is not None and abs(a.fs / r.paper.fs_true - 1) >= 0.05 and not _exempt(r)))
 

@@ -77,6 +77,24 @@ def test_pv_following_op_is_not_stick_slip() -> None:
     assert not stick_slip(op, pv).detected
 
 
+def test_slow_slip_after_an_op_reversal_is_found() -> None:
+    """Plant record 2411FIC20102_1008_1552 in outline: OP drifts down for most of the window
+    (PV on setpoint), turns and ramps up 2 % over 30 samples with PV still, then PV climbs
+    2.3 in two stages over 10 samples while OP stays put. The force was built since OP's turn
+    (not over the whole still stretch, where OP went both ways), and the slip is wider than
+    five samples: found on the 10-sample scale."""
+    t = np.arange(N)
+    op = 50.0 + np.interp(t, [0, 670, 700, N], [1.4, 0.0, 2.0, 2.0])
+    pv = 99.0 + np.interp(t, [0, 702, 705, 712, 715, N], [0, 0, 1.6, 1.6, 2.3, 2.3])
+    pv += RNG.normal(0, 0.25, N)
+    ss = stick_slip(op + RNG.normal(0, 0.02, N), pv)
+    assert ss.detected
+    (e,) = ss.episodes
+    assert 700 <= e.at <= 715
+    assert e.op_travel == pytest.approx(2.0, abs=0.3)
+    assert analyze(op, pv, ts=10.0).verdict == Verdict.STICTION
+
+
 def test_pv_still_and_op_still_is_not_stick_slip() -> None:
     op = 50 + RNG.normal(0, 0.01, N)
     pv = 10 + np.where(np.arange(N) < 400, 0.0, 2.0) + RNG.normal(0, 0.05, N)
@@ -96,4 +114,4 @@ def test_plant_data_no_false_positive_tags_and_some_stiction_found() -> None:
         pytest.skip(f"plant data not found: {PLANT}")
     res = plant_data.evaluate(verbose=False)
     assert res["tags_fp"] == 0
-    assert res["tags"] >= 0.64  # regression floor: 2 of 7 stiction tags, 27 of 27 others
+    assert res["tags"] >= 0.71  # regression floor: 3 of 7 stiction tags, 27 of 27 others
