@@ -110,6 +110,20 @@ def test_si_of_triangle_and_sine(noise: float) -> None:
     assert tri.half_periods >= 25
 
 
+def test_si_not_resolved_when_both_shapes_fit_within_the_noise() -> None:
+    # amplitude 1 under noise SD 2: the triangle's and the sine's misfits differ by ~0.003
+    # per sample, which noise of variance 4 drowns; under noise SD 0.1 they stand out
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        for base in (TRIANGLE, SINE):
+            assert not stiction_index(base + rng.normal(0, 2.0, T.size), 200.0).resolved
+    tri = stiction_index(TRIANGLE + rng.normal(0, 0.1, T.size), 200.0)
+    sin = stiction_index(SINE + rng.normal(0, 0.1, T.size), 200.0)
+    assert tri.resolved and sin.resolved
+    assert tri.si is not None and tri.si >= 0.9
+    assert sin.si is not None and sin.si <= 0.2
+
+
 def test_noise_sd_estimate() -> None:
     assert noise_sd(SINE + RNG.normal(0, 0.3, T.size)) == pytest.approx(0.3, rel=0.1)
 
