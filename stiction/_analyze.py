@@ -267,6 +267,13 @@ def analyze_details(
             "(likely tuning), so it is not sized", multi_jump=True,
             cycles_used=quant.cycles_used, warnings=tuple(warnings), **base),
             op_c, pv_c, quant)
+    if quant.poor_fit:
+        return Details(Assessment(
+            Verdict.UNDETERMINED, f"SI {si.si:.2f} looks like stiction, but PV between the "
+            f"jumps does not follow one valve jump's response in {quant.poor_fit} half cycles "
+            "(a load disturbance, or a creeping valve), so it is not called stiction and not "
+            "sized", cycles_used=quant.cycles_used, warnings=tuple(warnings), **base),
+            op_c, pv_c, quant)
     fs_txt = "" if quant.fs_op is None else f", fs {quant.fs_op / span:.3f}"
     no_kp = "" if kp_ is not None else " (fs needs kp)"
     return Details(Assessment(

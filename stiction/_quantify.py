@@ -31,11 +31,15 @@ Multi-jump check (Figure 7): a half cycle in which the valve jumps twice does no
 single exponential (or ramp). We flag a half cycle when splitting it in two curves (same
 tau) is significant (F > 25) and the step at the split goes the same way as the half cycle's
 jump and is at least a quarter of a typical jump; or when two consecutive jumps go the same
-way (a missed switch). More than a quarter of flagged half cycles sets ``multi_jump``. A fit
-residual RMS above both three times the PV noise SD and 5 % of the PV swing is not a second
-jump (plant PV drifts and creeps between jumps: in the StictionGPT records it flagged every
-half cycle of a plainly sticky valve); in over a quarter of the half cycles it is a warning
-that fs is less certain.
+way (a missed switch). More than a quarter of flagged half cycles sets ``multi_jump``.
+
+Fit check. A half cycle whose fit residual RMS exceeds both three times the PV noise SD and
+5 % of the PV swing does not follow one valve jump's response. That is not a second jump
+(plant PV often creeps between jumps), so it does not set ``multi_jump``; but in more than a
+quarter of the half cycles it sets ``poor_fit`` (their count), and :func:`analyze` then does
+not call the window stiction: random loads through a healthy loop make such half cycles too
+(on the false-alarm benchmark this check alone keeps 12 of 540 windows from a false
+``stiction``), and the creeping sticky valve of plant record 2111FIC46005 pays for it.
 """
 
 from __future__ import annotations
@@ -68,6 +72,7 @@ class Quantification:
     jump_op: float | None = None
     cycles_used: int = 0
     multi_jump: bool = False
+    poor_fit: int = 0  # half cycles whose PV does not follow one jump's response
     reason: str | None = None
     warnings: tuple[str, ...] = ()
     switches: Switches | None = None
@@ -220,9 +225,7 @@ def quantify(
     if flagged.any():
         warnings.append(f"{int(flagged.sum())} of {flagged.size} half cycles show a second "
                         "valve jump")
-    if poor_fit.mean() > MULTI_JUMP_FRACTION:
-        warnings.append(f"PV fits the curve of a single jump poorly in {int(poor_fit.sum())} "
-                        f"of {poor_fit.size} half cycles: fs is less certain")
+    n_poor = int(poor_fit.sum()) if poor_fit.mean() > MULTI_JUMP_FRACTION else 0
 
     jump_op: float | None = None
     fs_op: float | None = None
@@ -243,5 +246,5 @@ def quantify(
                                      "are not valve jumps", warnings=tuple(warnings),
                               switches=sw, jump_times=jumps)
     cycles = max(int(np.count_nonzero(ok)) - 1, 0) // 2
-    return Quantification(fd_op, fs_op, jump_op, cycles, multi, None, tuple(warnings), sw,
+    return Quantification(fd_op, fs_op, jump_op, cycles, multi, n_poor, None, tuple(warnings), sw,
                           jumps)
