@@ -17,7 +17,12 @@ sampling or a valve that slips in two steps, the slip spans more than ``M`` samp
 2. **Stuck before.** Going back from the slip, PV (``m``-sample running mean) stays within
    ``STUCK_BAND`` of the jump of its pre-slip level. Within that still stretch, the force
    that broke the valve was built since OP's last turn: the stuck phase starts where OP was
-   furthest from its pre-slip value, and must last at least ``3 m`` samples.
+   furthest from its pre-slip value, and must last at least ``3 m`` samples. Over it PV
+   must be still, not wandering inside the band: the 10-90 % spread of its ``m``-sample
+   means at most ``STILL_SPREAD`` of the jump. (White noise alone on a stuck valve gives at
+   most 0.23 at the smallest jump the slip test accepts; the plant's stick-slip records
+   0.07-0.42; a healthy loop wandering under a random load, the false alarms this stops,
+   0.46-0.60.)
 3. **OP built the force.** Over that stuck phase OP travelled monotonically (net change at
    least ``MONOTONE`` of its total variation, on ``m``-sample means) and by at least
    ``OP_NOISE`` OP noise SDs: the valve stood still while its input moved.
@@ -51,6 +56,7 @@ SCALES = (M, 2 * M)
 JUMP_RANGE_FRACTION = 0.3
 JUMP_NOISE = 8.0
 STUCK_BAND = 0.5
+STILL_SPREAD = 0.45
 MONOTONE = 0.7
 OP_NOISE = 10.0
 SAME_WAY_KICK = 0.25
@@ -145,6 +151,9 @@ def _episodes(op: FloatArray, pv: FloatArray, m: int) -> list[Episode]:
         lo += int(np.argmax(np.abs(us[end] - us[lo : end + 1])))
         stuck = end - lo
         if stuck < 3 * m:
+            continue
+        p10, p90 = np.percentile(ys[lo : end + 1], [10, 90])
+        if p90 - p10 > STILL_SPREAD * abs(d):
             continue
         travel = float(us[end] - us[lo])
         path = us[lo : end + 1 : m]
