@@ -20,6 +20,7 @@ import importlib
 import logging
 import multiprocessing
 import os
+import signal
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -127,8 +128,12 @@ def bad_values_reason(quality: NDArray[np.uint8], usable: int) -> str | None:
     return None
 
 
-def _lower_priority(increment: int) -> None:
-    """Worker initializer: lower this process's CPU priority (never fails the worker)."""
+def _init_worker(increment: int) -> None:
+    """Worker initializer: ignore SIGINT and lower this process's CPU priority (never fails
+    the worker). A Ctrl-C reaches every process of the terminal's group; the gateway handles
+    it and stops the pool, so the workers must not die of it first (each printed a
+    KeyboardInterrupt traceback after "demo stopped")."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     if increment > 0:
         with contextlib.suppress(OSError, AttributeError):
             os.nice(increment)
@@ -163,7 +168,7 @@ class AnalysisScheduler:
         """Start the worker processes (and import the analysis in each) before polling."""
         ctx = multiprocessing.get_context("spawn")
         self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx,
-                                         initializer=_lower_priority, initargs=(self.nice,))
+                                         initializer=_init_worker, initargs=(self.nice,))
         loop = asyncio.get_running_loop()
         await asyncio.gather(*(loop.run_in_executor(self._pool, _warm, self.analyze)
                                for _ in range(self.workers)))

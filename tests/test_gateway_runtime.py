@@ -144,3 +144,31 @@ def test_demo_runs_bounded_and_prints_where_it_listens() -> None:
     # "OSError: Bad file descriptor" traceback in about 2 of 5 runs)
     assert "Traceback" not in res.stderr, res.stderr
     assert "Exception ignored" not in res.stderr, res.stderr
+
+
+def test_demo_stops_cleanly_on_ctrl_c() -> None:
+    """Ctrl-C goes to the whole foreground process group, analysis workers included: the
+    demo says it stopped, exits 0, and no process prints a traceback (each worker printed a
+    KeyboardInterrupt traceback before the workers ignored SIGINT)."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([*CLI, "demo"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env, start_new_session=True)
+    try:
+        assert proc.stdout is not None
+        deadline = time.monotonic() + 60
+        seen = ""
+        while "t =" not in seen and time.monotonic() < deadline:  # the first table: running
+            seen += proc.stdout.readline()
+        assert "t =" in seen
+        time.sleep(4.0)  # an analysis round or more (3 s of wall time each at 40x)
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert "demo stopped" in out
+    assert "Traceback" not in err, err
+    assert "Exception ignored" not in err, err
