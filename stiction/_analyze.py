@@ -228,19 +228,15 @@ def analyze_details(
         return Details(Assessment(Verdict.UNDETERMINED, f"too few clean half periods in {det_name} "
                                   f"to fit ({si.half_periods})", warnings=tuple(warnings),
                                   **base), op_c, pv_c)
-    if not si.resolved:
+    if not si.resolved or si.si < STICTION_SI:
         if force_quantify:
             quant = quantify(op_c, pv_c, period=period, ts=ts_, kp=kp_, delay=delay_,
                              integrating=integrating, k=k_)
-        return Details(Assessment(
-            Verdict.UNDETERMINED, f"SI {si.si:.2f} not trusted: {det_name} is too noisy to tell "
-            "a triangle from a sine (both fit to within the noise); quantification not run",
-            warnings=tuple(warnings), **base), op_c, pv_c, quant)
-    if si.si < STICTION_SI:
-        if force_quantify:
-            quant = quantify(op_c, pv_c, period=period, ts=ts_, kp=kp_, delay=delay_,
-                             integrating=integrating, k=k_)
-        if si.si <= NO_STICTION_SI:
+        if not si.resolved:
+            reason = (f"SI {si.si:.2f} not trusted: {det_name} is too noisy to tell a triangle "
+                      "from a sine (both fit to within the noise); quantification not run")
+            verdict = Verdict.UNDETERMINED
+        elif si.si <= NO_STICTION_SI:
             reason = (f"SI {si.si:.2f} <= {NO_STICTION_SI}: {det_name} oscillates like a sine "
                       "(tuning or a disturbance, not stiction); quantification not run")
             verdict = Verdict.NO_STICTION

@@ -201,8 +201,8 @@ def quantify(
     warnings: list[str] = []
 
     # multi-jump check: a significant second step the same way inside a half cycle, or two
-    # consecutive jumps the same way. A poor single-curve fit alone is not counted: real
-    # PV drifts and creeps between jumps, and that is not a second jump (it is a warning).
+    # consecutive jumps the same way; a poor single-curve fit is counted apart (poor_fit, see
+    # the module doc): PV that creeps between jumps has not jumped twice
     sigma = noise_sd(pv)
     p5, p95 = np.percentile(pv, [5, 95])
     swing_pv = float(p95 - p5)

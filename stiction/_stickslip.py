@@ -123,7 +123,7 @@ def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
 def _episodes(op: FloatArray, pv: FloatArray, m: int) -> list[Episode]:
     """The episodes seen with ``m``-sample means on either side of the slip."""
     n = op.size
-    if n < 2 * m + 3 * m + 2:
+    if n < 5 * m + 2:  # the means before and after, a stuck phase of 3 m
         return []
     cy, ys = _means(pv, m)
     cu, us = _means(op, m)
