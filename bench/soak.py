@@ -39,28 +39,13 @@ from typing import Any
 import numpy as np
 import yaml
 
+from bench._net import free_port, wait_port
 from gateway.inputs.base import Quality
 from gateway.state import read_state
 
 PY = sys.executable
 SCENARIOS = ("table4-case2", "healthy", "table5-case2", "disturbance", "aggressive-tuning")
 RECONNECT_MAX_S = 5.0
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def wait_port(port: int, limit_s: float = 60.0) -> None:
-    deadline = time.monotonic() + limit_s
-    while time.monotonic() < deadline:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        time.sleep(0.05)
-    raise TimeoutError(f"nothing listens on {port}")
 
 
 def rss_kib(pid: int) -> int:
@@ -96,7 +81,7 @@ class Plc:
         self.proc = subprocess.Popen([PY, "-m", "gateway.cli", "plc-sim", "--config",
                                       str(self.cfg)], stdout=subprocess.DEVNULL,
                                      stderr=subprocess.DEVNULL)
-        wait_port(self.port)
+        wait_port(self.port, limit_s=60.0)
 
     def kill(self) -> None:
         assert self.proc is not None

@@ -60,12 +60,6 @@ def make_pki(root: Path) -> Pki:
                root / "wrong.pw")
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def server_security(pki: Pki, *, mode: str = "SignAndEncrypt",
                     policy: str = "Basic256Sha256", users: bool = True,
                     trusted_clients: bool = False) -> ServerSecurity:

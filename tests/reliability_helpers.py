@@ -6,7 +6,6 @@ import asyncio
 import contextlib
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -19,18 +18,12 @@ import numpy as np
 import yaml
 from pymodbus.client import AsyncModbusTcpClient
 
+from bench._net import wait_port
 from gateway.config import Config, parse_config
 from gateway.inputs.modbus import encode_values
 from gateway.result_server import RegisterServer
 
 FAKE = "gateway_fake_analyze_rel:analyze"
-
-
-def free_port() -> int:
-    """A port nothing listens on (bound then released: connecting is refused)."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class SilentServer:
@@ -177,16 +170,6 @@ async def until(pred: Callable[[], bool], limit_s: float = 20.0, step: float = 0
 # ---------------------------------------------------------------------- subprocesses
 
 PYTHON = sys.executable
-
-
-def wait_port(port: int, limit_s: float = 20.0) -> None:
-    deadline = time.monotonic() + limit_s
-    while time.monotonic() < deadline:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        time.sleep(0.05)
-    raise TimeoutError(f"nothing listens on port {port}")
 
 
 def start_plc_sim(tmp: Path, port: int, loops: int = 2, ts: float = 0.1,

@@ -35,7 +35,6 @@ from deploy_support import (
     Prometheus,
     Query,
     dashboard_queries,
-    free_port,
     has_data,
     http_get,
     require,
@@ -43,6 +42,8 @@ from deploy_support import (
     rule_queries,
     run,
 )
+
+from bench._net import free_port
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 

@@ -21,8 +21,10 @@ from pathlib import Path
 
 import pytest
 import yaml
-from deploy_support import UNIT, free_port, require, run
+from deploy_support import UNIT, require, run
 from test_deploy_live import GATEWAY, HEALTHY, TIME_SCALE
+
+from bench._net import free_port
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(120)]
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import math
-import socket
 import struct
 
 import numpy as np
@@ -13,6 +12,7 @@ from gateway_helpers import gateway_for, run, sim_config
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench._net import free_port
 from gateway.app import Gateway
 from gateway.errors import DeviceError
 from gateway.inputs.base import PointSpec, Quality
@@ -111,12 +111,6 @@ def test_coalescing_counted_at_the_server(loops: int, max_regs: int) -> None:
     assert sent == total_polls * expected
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_exception_for_one_block_is_a_gap_and_dead_device_raises() -> None:
     image = encode_values([12.5, 50.0], "float32").reshape(-1)  # registers 0..3
     points = [PointSpec("A", "op", ModbusPoint(0, "float32"), 2.0, 1.0),
@@ -139,7 +133,7 @@ def test_exception_for_one_block_is_a_gap_and_dead_device_raises() -> None:
         finally:
             await dev.close()
             await server.stop()
-        dead = ModbusInput("gone", ModbusDeviceOptions("127.0.0.1", _free_port(), 1), points,
+        dead = ModbusInput("gone", ModbusDeviceOptions("127.0.0.1", free_port(), 1), points,
                            timeout_s=0.5)
         with pytest.raises(DeviceError) as info:
             await dead.connect()

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -15,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from bench._net import free_port
 from gateway.config import load_config
 from gateway.inputs.base import Quality
 from gateway.plc_sim import load_sim_config
@@ -72,21 +72,15 @@ def _wait_http(port: int, timeout: float = 20.0) -> str:
             time.sleep(0.2)
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_run_serves_and_stops_cleanly_on_sigterm(tmp_path: Path) -> None:
     """A gateway whose PLC is not there keeps running (device down), serves metrics, and
     exits 0 within a few seconds of SIGTERM."""
     raw = yaml.safe_load((ROOT / "configs" / "example.yaml").read_text())
-    metrics_port = _free_port()
+    metrics_port = free_port()
     raw["metrics"]["listen"] = f"127.0.0.1:{metrics_port}"
     raw["modbus_server"]["listen"] = "127.0.0.1:0"
     for dev in raw["devices"]:
-        dev["host"], dev["port"], dev["timeout_s"] = "127.0.0.1", _free_port(), 0.2
+        dev["host"], dev["port"], dev["timeout_s"] = "127.0.0.1", free_port(), 0.2
     path = tmp_path / "gw.yaml"
     path.write_text(yaml.safe_dump(raw))
     proc = subprocess.Popen([*CLI, "run", "--config", str(path)], stdout=subprocess.PIPE,

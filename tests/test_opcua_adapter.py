@@ -14,7 +14,6 @@ from _opcua_support import (
     Pki,
     client_security,
     device,
-    free_port,
     make_pki,
     run,
     server_security,
@@ -22,6 +21,7 @@ from _opcua_support import (
 from asyncua import ua
 from asyncua.common.callback import CallbackType
 
+from bench._net import free_port
 from gateway.errors import DeviceError
 from gateway.inputs.base import PointSpec, Quality
 from gateway.inputs.opcua import OpcUaInput

@@ -32,12 +32,12 @@ from reliability_helpers import (
     config,
     device,
     feed,
-    free_port,
     lateness,
     loop,
     read_codes,
 )
 
+from bench._net import free_port
 from gateway.app import Gateway
 
 LATENESS_BOUND_S = 0.050  # a dead or silent device may delay a live one's ticks by this much

@@ -27,7 +27,6 @@ from reliability_helpers import (
     ScriptedPlc,
     device,
     feed,
-    free_port,
     loop,
     raw_config,
     read_codes,
@@ -39,6 +38,7 @@ from reliability_helpers import (
     wait_log,
 )
 
+from bench._net import free_port
 from gateway.app import Gateway
 from gateway.config import parse_config
 from gateway.inputs.base import Quality

@@ -26,7 +26,6 @@ from reliability_helpers import (
     config,
     device,
     feed,
-    free_port,
     loop,
     raw_config,
     scrape,
@@ -36,6 +35,7 @@ from reliability_helpers import (
     stop,
 )
 
+from bench._net import free_port
 from gateway.app import Gateway, _watchdog
 from gateway.sdnotify import Notifier
 from gateway.state import read_state
