@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
 import subprocess
+from collections.abc import AsyncIterator
 
 import numpy as np
 import pytest
@@ -77,6 +79,19 @@ def test_result_block_layout(word_order: str) -> None:
     assert st.verdict_code(0) == 6
 
 
+@contextlib.asynccontextmanager
+async def _client_of(server: ResultServer) -> AsyncIterator[AsyncModbusTcpClient]:
+    """Start ``server`` and yield a Modbus client connected to it; close both after."""
+    await server.start()
+    client = AsyncModbusTcpClient("127.0.0.1", port=server.port, timeout=2, retries=0)
+    try:
+        assert await client.connect()
+        yield client
+    finally:
+        client.close()
+        await server.stop()
+
+
 def test_result_server_serves_blocks_and_refuses_writes() -> None:
     st = _store()
     loops = [_loop("FIC101", 0), _loop("FIC401", 20), _loop("TIC301", 100)]
@@ -84,10 +99,7 @@ def test_result_server_serves_blocks_and_refuses_writes() -> None:
 
     async def go() -> None:
         server = ResultServer(settings, loops, st)
-        await server.start()
-        client = AsyncModbusTcpClient("127.0.0.1", port=server.port, timeout=2, retries=0)
-        try:
-            assert await client.connect()
+        async with _client_of(server) as client:
             holding = await client.read_holding_registers(0, count=40, device_id=1)
             inputs = await client.read_input_registers(0, count=40, device_id=1)
             assert not holding.isError()
@@ -120,9 +132,6 @@ def test_result_server_serves_blocks_and_refuses_writes() -> None:
             assert wrong.exception_code == 0x0A
             past = await client.read_input_registers(110, count=20, device_id=1)
             assert past.isError()
-        finally:
-            client.close()
-            await server.stop()
 
     run(go(), 30)
 
@@ -137,10 +146,7 @@ def test_result_server_serves_each_unit_id_its_own_blocks() -> None:
     async def go() -> None:
         server = ResultServer(settings, loops, st)
         assert sorted(server.images) == [1, 2, 3]
-        await server.start()
-        client = AsyncModbusTcpClient("127.0.0.1", port=server.port, timeout=2, retries=0)
-        try:
-            assert await client.connect()
+        async with _client_of(server) as client:
             one = await client.read_input_registers(0, count=20, device_id=1)
             two = await client.read_input_registers(0, count=20, device_id=2)
             two_h = await client.read_holding_registers(0, count=20, device_id=2)
@@ -183,9 +189,6 @@ def test_result_server_serves_each_unit_id_its_own_blocks() -> None:
             assert rsp.exception_code == 0x0A
             moved = await client.read_input_registers(40, count=20, device_id=2)
             assert _decode_block(moved.registers)["code"] == 4
-        finally:
-            client.close()
-            await server.stop()
 
     run(go(), 30)
 
@@ -197,18 +200,12 @@ def test_result_server_with_unit_id_0_answers_every_unserved_id() -> None:
 
     async def go() -> None:
         server = ResultServer(settings, loops, st)
-        await server.start()
-        client = AsyncModbusTcpClient("127.0.0.1", port=server.port, timeout=2, retries=0)
-        try:
-            assert await client.connect()
+        async with _client_of(server) as client:
             for unit in (0, 1, 9):  # the catch-all: FIC101
                 rsp = await client.read_input_registers(0, count=20, device_id=unit)
                 assert _decode_block(rsp.registers)["code"] == 4
             rsp = await client.read_input_registers(0, count=20, device_id=2)
             assert _decode_block(rsp.registers)["code"] == 2
-        finally:
-            client.close()
-            await server.stop()
 
     run(go(), 30)
 
