@@ -22,6 +22,7 @@ class Verdict(enum.StrEnum):
     UNDETERMINED = "undetermined"
     NOT_OSCILLATING = "not_oscillating"
     BAD_DATA = "bad_data"
+    VALVE_NOT_RESPONDING = "valve_not_responding"
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
