@@ -19,9 +19,11 @@ Causes (``CAUSES``), the answer a plant engineer wants:
 
 ``stiction``
     a sticky valve (He, Choudhury or Kano model; static band 1-8 % of span) in a loop tuned
-    by the SIMC rules. Kept only when the valve stuck and slipped at least
-    ``MIN_SLIPS`` times inside the record (a sticky valve that never moved leaves no
-    trace to find); ``visible`` says so.
+    by the SIMC rules, under loads below its stiction band: the valve that a plant engineer
+    finds cycling and labels sticky. The record is stretched to hold at least
+    ``MIN_CYCLES`` of its stick-slip cycles (estimated from the simulated valve's slips,
+    which must number at least ``MIN_SLIPS``); a sticky valve that never slipped, or
+    whose cycle is too slow for 10,000 samples, leaves nothing to find and is not kept.
 ``tuning``
     a perfect valve in a loop tuned at 60-90 % of its ultimate gain (or with a far too short
     integral time), rung by the loads: a lightly damped, sinusoidal oscillation.
@@ -57,8 +59,11 @@ from .valves import ChoudhuryValve, HeValve, KanoValve, ValveModel
 __all__ = ["CAUSES", "MIN_SLIPS", "LoopRecord", "realistic_loops"]
 
 CAUSES = ("stiction", "tuning", "disturbance", "propagated", "noise")
-MIN_SLIPS = 5
+MIN_SLIPS = 6
 """A record of the ``stiction`` cause is kept only when the valve slipped this often in it."""
+MIN_CYCLES = 3.0
+"""... and when it holds this many stick-slip cycles (two slips a cycle)."""
+MAX_SAMPLES = 10_000
 
 OVERSAMPLE = 4  # simulation steps per historian sample
 SAMPLE_TIMES = (1.0, 1.0, 2.0, 5.0, 10.0, 10.0, 30.0, 60.0)
@@ -94,7 +99,6 @@ class LoopRecord:
     op_range: tuple[float, float]
     fs: float
     fd: float
-    visible: bool
     description: str
 
     @property
@@ -130,11 +134,14 @@ class _Draw:
 
     @property
     def n_sim(self) -> int:
-        return OVERSAMPLE * (self.n + self.warm)
+        """Simulation steps: a sticky loop runs long enough for the longest record, which
+        is cut to hold ``MIN_CYCLES`` of its cycle once the cycle is known."""
+        n = MAX_SAMPLES if self.cause == "stiction" else self.n
+        return OVERSAMPLE * (n + self.warm)
 
     @property
     def warm(self) -> int:
-        return min(self.n // 4, 500)
+        return 500
 
 
 def _loguniform(rng: np.random.Generator, lo: float, hi: float) -> float:
@@ -291,18 +298,38 @@ def _simulate(draws: Sequence[_Draw], loads: FloatArray, seed: int
     return out[0], out[1], out[2]
 
 
-def _slips(vp: FloatArray) -> int:
-    """How often the valve broke away: moves that follow at least two steps at rest."""
+def _slips(vp: FloatArray) -> FloatArray:
+    """Steps at which the valve broke away: moves that follow at least two steps at rest."""
     moving = np.abs(np.diff(vp)) > 1e-9
     if moving.size < 3:
-        return 0
+        return np.empty(0)
     start = moving[2:] & ~moving[1:-1] & ~moving[:-2]
-    return int(np.count_nonzero(start))
+    return np.flatnonzero(start).astype(np.float64)
 
 
-def _record(d: _Draw, op: FloatArray, pv: FloatArray, vp: FloatArray) -> LoopRecord:
+def _length(d: _Draw, vp: FloatArray) -> int:
+    """Samples in the record: the drawn length, for a sticky valve stretched to hold
+    ``MIN_CYCLES`` of its stick-slip cycle (0 when the valve hardly slips or cycles too
+    slowly for ``MAX_SAMPLES``)."""
+    if d.cause != "stiction":
+        return d.n
+    slips = _slips(vp[OVERSAMPLE * d.warm :])
+    if slips.size < MIN_SLIPS:
+        return 0
+    period = 2.0 * float(np.median(np.diff(slips))) / OVERSAMPLE
+    n = max(d.n, math.ceil(MIN_CYCLES * period))
+    if n > MAX_SAMPLES or np.count_nonzero(slips < OVERSAMPLE * n) < MIN_SLIPS:
+        return 0
+    return n
+
+
+def _record(d: _Draw, op: FloatArray, pv: FloatArray, vp: FloatArray) -> LoopRecord | None:
     rng = d.rng
-    sl = slice(OVERSAMPLE * d.warm, d.n_sim)
+    n = _length(d, vp)
+    if n == 0:
+        return None
+    d.n = n
+    sl = slice(OVERSAMPLE * d.warm, OVERSAMPLE * (d.warm + n))
     op, pv, vp = op[sl], pv[sl], vp[sl]
     if rng.random() < 0.3:  # historian averages over the interval
         op = op.reshape(-1, OVERSAMPLE).mean(axis=1)
@@ -310,7 +337,6 @@ def _record(d: _Draw, op: FloatArray, pv: FloatArray, vp: FloatArray) -> LoopRec
         d.notes.append("averaged samples")
     else:
         op, pv = op[OVERSAMPLE - 1 :: OVERSAMPLE], pv[OVERSAMPLE - 1 :: OVERSAMPLE]
-    slips = _slips(vp)
     if rng.random() < 1 / 6:
         op = np.round(op * 1000.0) / 1000.0 if rng.random() < 0.5 else np.round(op * 4095) / 4095
         d.notes.append("OP quantised")
@@ -325,12 +351,11 @@ def _record(d: _Draw, op: FloatArray, pv: FloatArray, vp: FloatArray) -> LoopRec
     c, off = _loguniform(rng, 0.01, 50.0), rng.uniform(-500.0, 500.0)
     pv = c * pv + off
     fs, fd = (d.s + d.j) / 2.0, (d.s - d.j) / 2.0
-    visible = d.cause != "stiction" or slips >= MIN_SLIPS
     desc = (f"{d.cause} #{d.index}: {'integrating' if d.integrating else 'self-regulating'}, "
             f"ts {d.ts:g} s, {d.n} samples, OP in {unit}; " + ", ".join(d.notes))
     return LoopRecord(d.cause, d.index, d.ts, "integrating" if d.integrating else
                       "self-regulating", np.ascontiguousarray(op), np.ascontiguousarray(pv),
-                      (lo, hi), fs, fd, visible, desc)
+                      (lo, hi), fs, fd, desc)
 
 
 def _upstream(draws: Sequence[_Draw], seed: int) -> list[FloatArray]:
@@ -339,7 +364,7 @@ def _upstream(draws: Sequence[_Draw], seed: int) -> list[FloatArray]:
     ups = []
     for d in draws:
         rng = d.rng
-        up = _Draw("stiction", d.index, rng, d.ts, d.n, False, 1.0,
+        up = _Draw("upstream", d.index, rng, d.ts, d.n, False, 1.0,
                    d.ts * _loguniform(rng, 2.0, 30.0), 0.0)
         up.theta = up.tau * rng.uniform(0.0, 0.3)
         up.kc, up.ti = up.tau / (up.kp * (up.tau * 0.5 + up.theta + up.ts_sim)), up.tau
@@ -365,7 +390,8 @@ def realistic_loops(cause: str, count: int, *, seed: int = 0) -> list[LoopRecord
     """``count`` records of ``cause`` (one of :data:`CAUSES`), reproducible from ``seed``.
 
     For ``stiction`` only records in which the valve slipped at least :data:`MIN_SLIPS`
-    times are returned; candidates are drawn until ``count`` are found.
+    times and which hold :data:`MIN_CYCLES` of its cycle are returned; candidates are drawn
+    until ``count`` are found.
     """
     if cause not in CAUSES:
         raise ParameterError("cause", f"must be one of {', '.join(CAUSES)}; was {cause!r}")
@@ -377,7 +403,7 @@ def realistic_loops(cause: str, count: int, *, seed: int = 0) -> list[LoopRecord
         batch = [_draw(cause, index + i, seed) for i in range(max(count - len(out), 1) * 2)]
         index += len(batch)
         for rec in sorted(_run(batch, seed), key=lambda r: r.index):
-            if rec.visible and len(out) < count:
+            if len(out) < count:
                 out.append(rec)
     return out
 
@@ -403,6 +429,8 @@ def _run(draws: list[_Draw], seed: int) -> list[LoopRecord]:
                 load = load + upstream[d.index]
             loads[i, : d.n_sim] = load
         op, pv, vp = _simulate(group, loads, seed + group[0].index)
-        recs.extend(_record(d, op[i, : d.n_sim], pv[i, : d.n_sim], vp[i, : d.n_sim])
-                    for i, d in enumerate(group))
+        for i, d in enumerate(group):
+            rec = _record(d, op[i, : d.n_sim], pv[i, : d.n_sim], vp[i, : d.n_sim])
+            if rec is not None:
+                recs.append(rec)
     return recs
