@@ -154,7 +154,8 @@ def horch_test(op: ArrayLike, pv: ArrayLike, *, period: float | None = None,
 
     ``period``: the oscillation period in samples (None: estimated from the ACF).
     ``integrating``: the process integrates (level): PV's curvature test instead of the
-    cross-correlation. Bad data never raises: the vote is then 0 with a note.
+    cross-correlation (OP is then not used and may be constant, but must be finite). Bad
+    data never raises: the vote is then 0 with a note.
     """
     if not isinstance(integrating, bool | np.bool_):
         raise ParameterError("integrating", f"must be a bool, was {integrating!r}")
@@ -173,6 +174,9 @@ def horch_test(op: ArrayLike, pv: ArrayLike, *, period: float | None = None,
         raise ParameterError("pv", f"must have the length of op ({u_raw.size}), "
                              f"has {y_raw.size}")
     integ = bool(integrating)
+    for name, arr in (("OP", u_raw), ("PV", y_raw)):
+        if not np.all(np.isfinite(arr)):
+            return Horch(0, f"{name} has non-finite samples", integ, p)
     y = _normalised(y_raw, "PV")
     if isinstance(y, str):
         return Horch(0, y, integ, p)
@@ -198,8 +202,6 @@ def _normalised(x: FloatArray, name: str) -> FloatArray | str:
     n = x.size
     if n < MIN_SAMPLES:
         return f"record too short to tell: {n} samples"
-    if not np.all(np.isfinite(x)):
-        return f"{name} has non-finite samples"
     peak = float(np.max(np.abs(x)))
     if peak == 0.0:
         return f"{name} is constant"
