@@ -103,6 +103,7 @@ from ._validate import FloatArray
 __all__ = ["Horch", "horch_test"]
 
 MIN_SAMPLES = 32  # shorter records: too short to tell
+MIN_PERIOD = 4.0  # samples: a faster cycle cannot show a lobe or a curvature
 MIN_CYCLES = 3.0  # periods the record must hold
 SEARCH = 0.75  # zero crossings of the CCF searched out to this many periods from lag 0
 LOBE_MIN = 0.25  # tau_r + tau_l, as a share of the period: a CCF lobe, not noise
@@ -159,11 +160,7 @@ def horch_test(op: ArrayLike, pv: ArrayLike, *, period: float | None = None,
     """
     if not isinstance(integrating, bool | np.bool_):
         raise ParameterError("integrating", f"must be a bool, was {integrating!r}")
-    p = None
-    if period is not None:
-        p = v.positive_scalar("period", period)
-        if p < 2.0:
-            raise ParameterError("period", f"must be at least 2 samples, was {period!r}")
+    p = None if period is None else v.positive_scalar("period", period)
     u_raw = np.asarray(op, dtype=np.float64)
     y_raw = np.asarray(pv, dtype=np.float64)
     if u_raw.ndim != 1:
@@ -188,6 +185,9 @@ def horch_test(op: ArrayLike, pv: ArrayLike, *, period: float | None = None,
         if p is None:
             return Horch(0, "no regular oscillation: the test needs a cycle", integ)
     n = y.size
+    if p < MIN_PERIOD:
+        return Horch(0, f"oscillation too fast to tell: period {p:.1f} samples, the test "
+                     f"needs {MIN_PERIOD:g}", integ, p)
     if n < MIN_CYCLES * p:
         return Horch(0, f"record too short to tell: {n / p:.1f} cycles, the test needs "
                      f"{MIN_CYCLES:g}", integ, p)
