@@ -131,6 +131,7 @@ EPSILON_PERCENTILE = 75.0  # conditioning factor: this percentile of the denomin
 HARMONICS = 32  # with a period: bifrequencies up to this harmonic of the fundamental
 MIN_PERIOD = 4.0  # samples: a faster cycle has no harmonic below Nyquist
 FLAT = 1e-12  # detrended peak / raw peak below this: constant to float precision
+_BLOCK = 8192  # complex products per block in the bispectrum sum (128 kB)
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -290,8 +291,20 @@ def _squared_bicoherence(spec: NDArray[np.complex128], i: NDArray[np.intp],
     d = pair * pw.mean(axis=0)[i + j]
     if not d.max() > 0.0:
         return None
-    prod = spec[:, i] * spec[:, j] * np.conj(spec[:, i + j])
-    b = prod.mean(axis=0)
+    # E[X(f1) X(f2) X*(f1+f2)], a block of bifrequencies at a time: whole (K, M) temporaries
+    # are each allocated afresh (mmap) and cost more in page faults than the arithmetic
+    by_bin = np.ascontiguousarray(spec.T)
+    conj = np.conj(by_bin)
+    ij = i + j
+    b = np.empty(i.size, dtype=np.complex128)
+    step = max(1, _BLOCK // k)
+    for lo in range(0, i.size, step):
+        hi = lo + step
+        prod = by_bin[i[lo:hi]]
+        prod *= by_bin[j[lo:hi]]
+        prod *= conj[ij[lo:hi]]
+        b[lo:hi] = prod.sum(axis=1)
+    b /= k
     eps = float(np.percentile(d, EPSILON_PERCENTILE))
     return np.asarray((b.real**2 + b.imag**2) / (d + eps))
 
