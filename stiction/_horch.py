@@ -73,13 +73,15 @@ Algorithm as implemented:
    of the variance, so ``sine_share = sqrt((3 - kurtosis) / 1.5)`` (0 when the kurtosis is 3
    or more: the two-peaked model then collapses onto the Gaussian and fits no better).
 5. Vote (thresholds ours): kurtosis >= ``SPIKY_KURTOSIS`` (4: heavier tails than a Gaussian,
-   the spikes of ramps with sharp turns; a triangle wave gives 5.4 at h = P/12) +1;
+   the spikes of ramps with sharp turns; a clean triangle wave gives 4.5 at h = P/12, the
+   Table 5 sticky level loops 4.9-6.7) +1;
    kurtosis <= ``SINE_KURTOSIS`` (2.25: the fitted sine carries at least 71 % of the variance)
    -1; in between 0. A Gaussian curvature (kurtosis near 3) is not counted as stiction: a
    loop rung by random load is a narrow-band Gaussian process whose curvature is Gaussian
-   too (measured 2.8-2.9 on an aggressively tuned level loop).
+   too (measured 2.8-3.2 on an aggressively tuned level loop).
 
-Sees well: level loops with a clean stick-slip cycle (kurtosis 4-8 on the Table 5 loops).
+Sees well: level loops with a clean stick-slip cycle (kurtosis 4.9-6.7 on the Table 5
+loops).
 Fails: noisy PV with slow cycles (snr gate), set-point steps or load steps inside the
 window (a step is a curvature spike and reads sticky), non-sinusoidal linear cycles.
 """
