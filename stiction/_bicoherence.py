@@ -53,8 +53,12 @@ Algorithm as implemented
 5. bic^2 with the authors' regularisation of the denominator: ``D + epsilon`` with
    ``epsilon`` the ``EPSILON_PERCENTILE`` (75th) percentile of ``D`` over the domain, the
    conditioning factor suggested in Choudhury et al. (2008, p. 80) as read by astrochron's
-   ``bicoherence`` (we could not check the book's page). It keeps bifrequencies with little
-   power from producing spurious peaks; being relative, it is unit-free.
+   ``bicoherence`` (we could not check the book's page), and at least ``EPSILON_FLOOR``
+   (1e-6) of the largest ``D`` (ours: on a noise-free sine most of the domain is rounding
+   error, the percentile is then 1e-33 of the peak, and deterministic leakage 1e-11 below the
+   peak read bic^2 = 1.00; 1e-6 still leaves harmonics of 1 % power untouched). It keeps
+   bifrequencies with little power from producing spurious peaks; being relative, it is
+   unit-free.
 6. Significance. A bifrequency is significant when ``bic^2 > chi2_{2}(ALPHA / M) / (2 K)``:
    the authors' chi-square critical value at ``ALPHA = 0.05``, Bonferroni-corrected for the
    ``M`` bifrequencies tested (see "Doubt" below).
@@ -69,11 +73,13 @@ Algorithm as implemented
    of :mod:`stiction.scenarios` are exactly that, because the valve model and the linear loop
    are odd-symmetric. Their third harmonic is phase-locked to the fundamental, which the
    fourth-order analogue of bic^2 at (f0, f0, f0) sees:
-   ``t^2 = |E[X(f0)^3 X*(3 f0)]|^2 / (E[|X(f0)|^6] E[|X(3 f0)|^2])`` with ``f0`` on bin ``c``
-   and ``3 f0`` taken as the best of bins ``3c - 1 .. 3c + 1`` (the period from the ACF can be
-   10-15 % off on irregular cycles; never bin ``c + 1``, which holds the fundamental's own
-   window leakage: a noisy sine read t^2 0.96 there), significant above
-   ``chi2_2(ALPHA / 3) / (2 K)`` under the same asymptotics. Only with a period.
+   ``t^2 = |E[X(f0)^3 X*(3 f0)]|^2 / (E[|X(f0)|^6] E[|X(3 f0)|^2])``, significant above
+   ``chi2_2(ALPHA / 3) / (2 K)`` under the same asymptotics. ``f0`` is bin ``c``; ``3 f0`` the
+   best of bins ``3c - 1 .. 3c + 1`` (the period from the ACF can be 10-15 % off on irregular
+   cycles), never bin ``c + 1``, which holds the fundamental's own window leakage (a noisy
+   sine read t^2 0.96 there). ``E[|X(3 f0)|^2]`` is floored at ``THIRD_FLOOR`` (1e-4) of
+   ``E[|X(f0)|^2]``, as epsilon above (a triangle's third harmonic has 1/81 of the
+   fundamental's power). Only with a period.
 8. Vote. NGI > ``NGI_THRESHOLD`` (0.001) and NLI > ``NLI_THRESHOLD`` (0.01): +1, nonlinear.
    Otherwise, a significant third harmonic: 0 (a symmetric non-sinusoidal cycle, which this
    test cannot judge). Otherwise -1: Gaussian (NGI <= 0.001) or non-Gaussian but linear (flat
@@ -129,7 +135,9 @@ TRIM = 0.10  # share cut from each end for the robust mean and SD of bic^2
 MIN_SEGMENTS = 20  # fewer segments: too short to tell
 DEFAULT_SEGMENT_LENGTH = 128  # the authors' segment (FFT) length, used without a period
 MIN_SEGMENT_LENGTH = 32  # shortest segment: enough bins for a bifrequency background
-EPSILON_PERCENTILE = 75.0  # conditioning factor: this percentile of the denominator
+EPSILON_PERCENTILE = 75.0  # conditioning factor: this percentile of the denominator ...
+EPSILON_FLOOR = 1e-6  # ... and at least this share of its largest value
+THIRD_FLOOR = 1e-4  # third-harmonic power floor, share of the fundamental's
 HARMONICS = 32  # with a period: bifrequencies up to this harmonic of the fundamental
 MIN_PERIOD = 4.0  # samples: a faster cycle has no harmonic below Nyquist
 FLAT = 1e-12  # detrended peak / raw peak below this: constant to float precision
@@ -233,6 +241,7 @@ def bicoherence_test(x: ArrayLike, *, period: float | None = None) -> Bicoherenc
 def _say(res: Bicoherence, vote: int, note: str) -> Bicoherence:
     return dataclasses.replace(res, vote=vote, note=note)
 
+
 def _check_period(period: float | None) -> float | None:
     return None if period is None else v.positive_scalar("period", period)
 
@@ -307,7 +316,7 @@ def _squared_bicoherence(spec: NDArray[np.complex128], i: NDArray[np.intp],
         prod *= conj[ij[lo:hi]]
         b[lo:hi] = prod.sum(axis=1)
     b /= k
-    eps = float(np.percentile(d, EPSILON_PERCENTILE))
+    eps = max(float(np.percentile(d, EPSILON_PERCENTILE)), EPSILON_FLOOR * float(d.max()))
     return np.asarray((b.real**2 + b.imag**2) / (d + eps))
 
 
@@ -320,8 +329,9 @@ def _third_harmonic(spec: NDArray[np.complex128], c: int) -> float | None:
     # not bin c + 1: the fundamental's own window leakage, whose cube product would stay
     # in phase from segment to segment
     x3 = spec[:, max(3 * c - 1, c + 2) : 3 * c + 2]
-    p3 = np.mean(x3.real**2 + x3.imag**2, axis=0)
-    den = float(np.mean((x1.real**2 + x1.imag**2) ** 3)) * p3
+    p1 = x1.real**2 + x1.imag**2
+    p3 = np.mean(x3.real**2 + x3.imag**2, axis=0) + THIRD_FLOOR * float(np.mean(p1))
+    den = float(np.mean(p1**3)) * p3
     if not np.all(den > 0.0):
         return None
     num = np.abs(np.mean((x1**3)[:, None] * np.conj(x3), axis=0)) ** 2

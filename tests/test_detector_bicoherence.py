@@ -116,6 +116,15 @@ def test_gaussian_noise_and_noisy_sines_read_linear() -> None:
         assert vs.count(-1) >= 7, (what, vs)
 
 
+@pytest.mark.parametrize("p", [12.0, 37.3, 50.0, 64.0, 100.0])
+def test_noise_free_sine_reads_linear(p: float) -> None:
+    # no noise: most bifrequencies hold rounding error and deterministic leakage, which
+    # must not read as coupling (the floor under epsilon)
+    res = bicoherence_test(np.sin(2 * np.pi * T / p), period=p)
+    assert res.vote == -1, res
+    assert res.max_bicoherence is not None and res.max_bicoherence < 0.01
+
+
 def test_segments_that_start_in_phase_do_not_fake_coupling() -> None:
     # a sine with a period of exactly 25 samples: an even number of periods per segment
     # would put every segment at the same phase and leakage would read as coupling
