@@ -65,7 +65,9 @@ Algorithm as implemented:
    samples (12 per period, at least 1), then ``d(t) = s(t + h) - 2 s(t) + s(t - h)``; ``h``
    samples cut at both ends.
 3. Noise: the white-noise SD of PV from its second differences (robust MAD, as
-   :func:`stiction._detect.noise_sd`) predicts the SD of ``d`` from noise alone,
+   :func:`stiction._detect.noise_sd`), and at least the rounding noise ``q / sqrt(12)`` of
+   PV's quantum ``q`` (its smallest non-zero step: on a quantised level reading most second
+   differences are 0 and the MAD says "no noise"), predicts the SD of ``d`` from noise alone,
    ``sigma sqrt(6 / h)``; ``curvature_snr = SD(d) / that``. Below ``MIN_SNR`` (3, noise at most
    a ninth of the variance of ``d``): vote 0, the curvature is mostly noise.
 4. Fits. Gaussian: kurtosis 3. Two-peaked model A sin + N(0, s^2), fitted by its variance
@@ -194,7 +196,7 @@ def horch_test(op: ArrayLike, pv: ArrayLike, *, period: float | None = None,
         return Horch(0, f"record too short to tell: {n / p:.1f} cycles, the test needs "
                      f"{MIN_CYCLES:g}", integ, p)
     if integ:
-        return _curvature(y, p)
+        return _curvature(y, p, _quantum(y_raw) * _gain(y_raw, y))
     assert not isinstance(u, str)
     return _cross_correlation(u, y, p)
 
@@ -272,7 +274,7 @@ def _cross_correlation(u: FloatArray, y: FloatArray, p: float) -> Horch:
     return _say(res, 0, f"OP-PV cross-correlation neither odd nor even (phase {phase:.0f} "
                 "deg)")
 
-def _curvature(y: FloatArray, p: float) -> Horch:
+def _curvature(y: FloatArray, p: float, quantum: float) -> Horch:
     h = max(1, round(p / CURVE_FRACTION))
     res = Horch(0, "", True, p)
     if y.size < 6 * h + 8:
@@ -284,7 +286,9 @@ def _curvature(y: FloatArray, p: float) -> Horch:
     var = float(np.mean(d * d))
     if not var > 0:
         return _say(res, 0, "PV has no curvature")
-    sigma = noise_sd(y)  # second differences: blind to the trend removed from y
+    # white noise from second differences (blind to the trend removed from y), at least
+    # the rounding noise of PV's quantum: on a quantised PV most second differences are 0
+    sigma = max(noise_sd(y), quantum / math.sqrt(12.0))
     noise_d = sigma * math.sqrt(6.0 / h)
     snr = math.sqrt(var) / noise_d if noise_d > 0 else None
     kurt = float(np.mean(d**4)) / (var * var)
@@ -303,3 +307,17 @@ def _curvature(y: FloatArray, p: float) -> Horch:
 
 def _say(res: Horch, vote: int, note: str) -> Horch:
     return dataclasses.replace(res, vote=vote, note=note)
+
+
+def _quantum(x: FloatArray) -> float:
+    """Smallest non-zero step of ``x`` (its resolution when quantised)."""
+    steps = np.abs(np.diff(x))
+    steps = steps[steps > 0]
+    return float(steps.min()) if steps.size else 0.0
+
+
+def _gain(raw: FloatArray, y: FloatArray) -> float:
+    """``a`` in ``y = a raw + line``: what :func:`_normalised` multiplied ``raw`` by."""
+    d2 = np.diff(raw, 2)
+    k = int(np.argmax(np.abs(d2)))
+    return abs(float(np.diff(y, 2)[k] / d2[k])) if d2[k] != 0 else 0.0

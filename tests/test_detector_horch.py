@@ -137,6 +137,19 @@ def test_noisy_slow_cycle_is_mostly_noise() -> None:
     assert res.curvature_snr is not None and res.curvature_snr < 3
 
 
+def test_quantised_level_reading() -> None:
+    # most second differences of a coarsely quantised PV are 0: the noise floor is then the
+    # quantum's rounding noise, not the MAD's zero
+    sticky = loop("table5-case2", n=N, noise=0.0)
+    res = horch_test(sticky.op, np.round(sticky.pv / 0.5) * 0.5, integrating=True)
+    assert res.vote == 1, res
+    disturbed = loop("table5-case2", n=N, noise=0.0, **LEVEL_DISTURBED)  # PV SD 1.6
+    res = horch_test(disturbed.op, np.round(disturbed.pv / 2.0) * 2.0, period=300.0,
+                     integrating=True)
+    assert res.vote == 0, res
+    assert res.curvature_snr is not None and res.curvature_snr < 10
+
+
 # --- degenerate data, units ------------------------------------------------------------------
 
 
