@@ -35,11 +35,13 @@ Algorithm as implemented
    segment at the same phase of the cycle, so that window leakage of a pure sine adds up
    coherently across segments and reads as phase coupling (measured: a noisy sine with
    ``L = 2P`` gave bic^2 0.98). Without ``P``: the authors' ``L = DEFAULT_SEGMENT_LENGTH``
-   (128), halved (down to 32) while the record gives fewer than ``MIN_SEGMENTS`` segments.
+   (128, the FFT length of their examples), halved (down to 32) while the record gives fewer
+   than ``MIN_SEGMENTS`` segments. A period under ``MIN_PERIOD`` (4 samples: no harmonic below
+   Nyquist; the ACF reports such periods on noise) or a record under 32 samples: vote 0.
 3. ``K`` segments of ``L`` samples, overlapping by half (the authors' 50 %), each with its mean
    removed and a Hann window (periodic form, so its leakage vanishes at two or more bins from a
    component), FFT. Fewer than ``MIN_SEGMENTS`` (20) segments: vote 0, too short to tell (the
-   chi-square null is asymptotic in ``K``; the brief's figure).
+   chi-square null is asymptotic in ``K``; 20 is our reading of "tens of segments").
 4. Band. The bispectrum is taken over its principal domain (``f1 <= f2``,
    ``f1 + f2 <= 1/2``) without the DC bin. With a period, bin 1 is ``f0 / c``: every slower
    component (drift, trend) lies below the band, which is the authors' high-pass; the upper

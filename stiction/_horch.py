@@ -6,9 +6,10 @@ A. Horch (1999), "A simple method for detection of stiction in control valves", 
 Engineering Practice 7(10), 1221-1231 (self-regulating loops).
 A. Horch (2000), "Condition Monitoring of Control Loops", PhD thesis, Royal Institute of
 Technology (KTH), Stockholm; A. Horch and A. J. Isaksson (2001), "Detection of valve stiction
-in integrating processes", European Control Conference, Porto (integrating loops; the brief
-also names Horch 2002, "Patterns for stiction in integrating processes", which we did not
-see).
+in integrating processes", European Control Conference, Porto (integrating loops; issue 13
+also cites Horch 2002, "Patterns for stiction in integrating processes", not checked here).
+We had neither paper's text at hand: the rules below follow the published idea, and every
+number in them is ours and says so.
 
 Self-regulating loops: the cross-correlation of OP and PV
 ----------------------------------------------------------
@@ -25,7 +26,8 @@ Algorithm as implemented:
    units or offsets survive).
 2. Period ``P``: the caller's, or the ACF period of PV (Thornhill et al. 2003, as
    :func:`stiction._oscillation.detect_oscillation`), else of OP; neither oscillating: vote 0.
-   Fewer than ``MIN_CYCLES`` (3) periods in the record: vote 0.
+   Fewer than ``MIN_SAMPLES`` (32) samples, a period under ``MIN_PERIOD`` (4 samples: the
+   ACF reports such periods on noise) or fewer than ``MIN_CYCLES`` (3) periods: vote 0.
 3. CCF ``r(tau) = corr(OP(t), PV(t + tau))`` (biased, normalised, by FFT).
 4. The zero crossings nearest lag 0 on each side, ``tau_r >= 0`` and ``tau_l >= 0`` (the
    left one as a distance), by linear interpolation, searched out to ``0.75 P``. For
@@ -44,8 +46,11 @@ Algorithm as implemented:
 Sees well: fast self-regulating loops (flow, pressure), where PV follows the valve within a
 small part of the period. Fails: large dead time or slow processes (PV lags OP by more, the
 CCF shifts and looks less odd), integrating processes (OP and PV are a quarter period apart
-whatever the valve does: use ``integrating=True``), external sinusoidal disturbances (the
-phase is anywhere between even and odd; 38 deg on the ``disturbance`` scenario, vote 0).
+whatever the valve does: use ``integrating=True``) and loops that act as integrators at the
+cycle's frequency (a temperature driven by coolant flow: the Tennessee Eastman reactor-
+temperature loops read odd, 84-87 deg, with no sticky valve), external sinusoidal
+disturbances (the phase is anywhere between even and odd; 38 deg on the ``disturbance``
+scenario, vote 0).
 
 Integrating loops: the distribution of PV's curvature
 ------------------------------------------------------
@@ -55,8 +60,9 @@ cycle makes PV a sine, whose second derivative is a sine too. Horch compares the
 distribution of the (filtered) second difference of PV with a Gaussian and with a two-peaked
 distribution (a sine plus Gaussian noise): a sine's values pile up near its extremes
 (arcsine density, two peaks), the spikes of a sticky valve give a peak at zero with long
-tails. (The brief wrote "bimodal (sticky) vs Gaussian (not)"; physically and, as we read
-Horch, it is the other way round: two-peaked = sinusoidal = not sticky.)
+tails. So for the second difference two-peaked means sinusoidal, not sticky; a summary
+reading "bimodal = sticky" has it backwards (it would fit the first difference, a square wave
+under stiction, but a sine's first difference is two-peaked as well).
 
 Algorithm as implemented:
 
