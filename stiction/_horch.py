@@ -202,7 +202,7 @@ def horch_test(op: ArrayLike, pv: ArrayLike, *, period: float | None = None,
         return Horch(0, f"record too short to tell: {n / p:.1f} cycles, the test needs "
                      f"{MIN_CYCLES:g}", integ, p)
     if integ:
-        return _curvature(y, p, _quantum(y_raw) * _gain(y_raw, y))
+        return _curvature(y, p, _quantum(y_raw, y))
     assert not isinstance(u, str)
     return _cross_correlation(u, y, p)
 
@@ -315,15 +315,17 @@ def _say(res: Horch, vote: int, note: str) -> Horch:
     return dataclasses.replace(res, vote=vote, note=note)
 
 
-def _quantum(x: FloatArray) -> float:
-    """Smallest non-zero step of ``x`` (its resolution when quantised)."""
-    steps = np.abs(np.diff(x))
+def _quantum(raw: FloatArray, y: FloatArray) -> float:
+    """PV's resolution (its smallest non-zero step, when quantised) in the units of ``y``,
+    the normalised PV: ``y = (raw / peak - line) / span``, so a step of ``raw / peak`` is
+    divided by ``span``, found from the second differences (blind to the line)."""
+    scaled = raw / float(np.max(np.abs(raw)))
+    steps = np.abs(np.diff(scaled))
     steps = steps[steps > 0]
-    return float(steps.min()) if steps.size else 0.0
-
-
-def _gain(raw: FloatArray, y: FloatArray) -> float:
-    """``a`` in ``y = a raw + line``: what :func:`_normalised` multiplied ``raw`` by."""
-    d2 = np.diff(raw, 2)
+    if not steps.size:
+        return 0.0
+    d2 = np.diff(scaled, 2)
     k = int(np.argmax(np.abs(d2)))
-    return abs(float(np.diff(y, 2)[k] / d2[k])) if d2[k] != 0 else 0.0
+    if d2[k] == 0:  # a straight line: normalisation left nothing to measure
+        return 0.0
+    return float(steps.min()) * abs(float(np.diff(y, 2)[k] / d2[k]))
