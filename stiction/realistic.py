@@ -28,13 +28,20 @@ Causes (``CAUSES``), the answer a plant engineer wants:
     a perfect valve in a loop tuned at 60-90 % of its ultimate gain (or with a far too short
     integral time), rung by the loads: a lightly damped, sinusoidal oscillation.
 ``disturbance``
-    a perfect valve and an external periodic load of 1-5 % of span: sine, square (smoothed),
-    triangle, sawtooth or two tones.
+    a perfect valve and an external periodic load of 1-5 % of span: a sine, two tones, or a
+    square wave (on/off) through a lag of 5-30 % of its period, as a load arrives through
+    process dynamics.
 ``propagated``
     a perfect valve whose load is the oscillation of another loop with a sticky valve
     (its PV, through a first-order lag): the stiction limit cycle arrives from elsewhere.
 ``noise``
     a perfect valve with loads, setpoint changes and noise, nothing periodic.
+``ramp-load``
+    a perfect valve and a load that ramps and turns sharply (triangle or sawtooth, 1-5 % of
+    span). The loop answers it exactly as it answers a sticky valve: OP ramps against the
+    load while PV sits at a constant offset, and flips when the load turns, so OP and PV
+    alone cannot tell the two apart. Kept as a cause of its own so that this limit is
+    measured, not hidden.
 
 Everything is drawn from ``numpy.random.default_rng((seed, cause, i))``, so a record is
 reproducible from its ``(seed, cause, index)`` and records of one cause do not change when
@@ -58,7 +65,7 @@ from .valves import ChoudhuryValve, HeValve, KanoValve, ValveModel
 
 __all__ = ["CAUSES", "MIN_SLIPS", "LoopRecord", "realistic_loops"]
 
-CAUSES = ("stiction", "tuning", "disturbance", "propagated", "noise")
+CAUSES = ("stiction", "tuning", "disturbance", "propagated", "noise", "ramp-load")
 MIN_SLIPS = 6
 """A record of the ``stiction`` cause is kept only when the valve slipped this often in it."""
 MIN_CYCLES = 3.0
@@ -77,7 +84,8 @@ OP_UNITS: tuple[tuple[float, float, str], ...] = (
     (2.5, 300.0, "engineering units with offset"),
     (1.0, -50.0, "% with offset -50"),
 )
-WAVEFORMS = ("sine", "square", "triangle", "sawtooth", "two-tone")
+WAVEFORMS = ("sine", "square", "two-tone")
+RAMP_WAVEFORMS = ("triangle", "sawtooth")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -243,8 +251,8 @@ def _periodic(d: _Draw, kind: str) -> FloatArray:
     if kind == "sine":
         x = np.sin(2 * np.pi * ph)
     elif kind == "square":
-        x = signal.lfilter([1.0 - math.exp(-20.0 / period)], [1.0, -math.exp(-20.0 / period)],
-                           np.sign(np.sin(2 * np.pi * ph)))
+        c = math.exp(-1.0 / (period * rng.uniform(0.05, 0.3)))
+        x = signal.lfilter([1.0 - c], [1.0, -c], np.sign(np.sin(2 * np.pi * ph)))
     elif kind == "triangle":
         x = 4.0 * np.abs(frac - 0.5) - 1.0
     elif kind == "sawtooth":
@@ -421,8 +429,9 @@ def _run(draws: list[_Draw], seed: int) -> list[LoopRecord]:
             if prop else {}
         for i, d in enumerate(group):
             load = _loads(d)
-            if d.cause == "disturbance":
-                kind = str(d.rng.choice(WAVEFORMS))
+            if d.cause in ("disturbance", "ramp-load"):
+                kind = str(d.rng.choice(WAVEFORMS if d.cause == "disturbance"
+                                        else RAMP_WAVEFORMS))
                 load = load + _periodic(d, kind)
                 d.notes.append(f"{kind} load")
             elif d.cause == "propagated":
