@@ -78,6 +78,7 @@ BAND_HI = 3.5  # keeps the third harmonic (the square and triangle shapes), drop
 EDGE = 0.5  # periods dropped at each end (rectangular-window ringing)
 MIN_CYCLES = 2.5  # periods the window must hold
 MIN_POINTS = 16
+MIN_PERIOD = 8.0  # samples, as stiction._oscillation.MIN_PERIOD (the third harmonic needs 3)
 POINTS_PER_PERIOD = 24  # the filtered signals hold nothing above 3.5 / period: fit every k-th
 FUND_HI = 1.5  # the fundamental's band, for the phase and coherence
 COHERENCE_MIN = 0.5  # share of PV's power at the fundamental that one complex gain from OP explains
@@ -116,8 +117,8 @@ def _check_period(period: object) -> float:
         p = float(period)  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:
         raise ParameterError("period", f"must be a number of samples, was {period!r}") from exc
-    if not math.isfinite(p) or p < 2.0:
-        raise ParameterError("period", f"must be a finite number of samples >= 2, was {period!r}")
+    if not math.isfinite(p) or p <= 0.0:
+        raise ParameterError("period", f"must be a finite number of samples > 0, was {period!r}")
     return p
 
 
@@ -187,6 +188,8 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     if op.shape != pv.shape or op.ndim != 1:
         raise ParameterError("pv", f"must be 1-D and as long as op ({pv.shape} vs {op.shape})")
     n = op.size
+    if p < MIN_PERIOD:
+        return _none(f"period of {p:.3g} samples: too fast for a pattern")
     if n < max(MIN_POINTS, MIN_CYCLES * p):
         return _none(f"window too short for the pattern: {n} samples, "
                      f"fewer than {MIN_CYCLES:g} periods")

@@ -101,6 +101,7 @@ __all__ = ["HammersteinFit", "hammerstein_test"]
 
 MAX_CYCLES = 12
 MIN_CYCLES = 3.0
+MIN_PERIOD = 8.0  # samples, as stiction._oscillation.MIN_PERIOD
 SAMPLES_PER_PERIOD = 20
 H_NOISE = 3.0
 H_RANGE = 0.04  # of OP's 5-95 % range
@@ -366,7 +367,9 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     k_ = _number("k", k, low=1.0)
     if k_ > 2.0:
         raise ParameterError("k", f"must lie in [1, 2], was {k!r}")
-    p = None if period is None else _number("period", period, low=2.0)
+    p = None if period is None else _number("period", period, low=0.0)
+    if p is not None and p <= 0:
+        raise ParameterError("period", f"must be > 0, was {period!r}")
     op = np.asarray(op, dtype=np.float64)
     pv = np.asarray(pv, dtype=np.float64)
     if op.shape != pv.shape or op.ndim != 1:
@@ -382,6 +385,8 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
                 break
         if p is None:
             return _none("no oscillation to fit")
+    if p < MIN_PERIOD:
+        return _none(f"period of {p:.3g} samples: too fast to see a valve stick")
     if n < MIN_CYCLES * p:
         return _none(f"fewer than {MIN_CYCLES:g} periods in the window")
     use = int(min(n, MAX_CYCLES * p))

@@ -123,8 +123,8 @@ def _scale(period: object) -> int:
     except (TypeError, ValueError) as exc:
         raise ParameterError("period",
                              f"must be a number of samples or None, was {period!r}") from exc
-    if not math.isfinite(p) or p < 2.0:
-        raise ParameterError("period", f"must be a finite number of samples >= 2, was {period!r}")
+    if not math.isfinite(p) or p <= 0.0:
+        raise ParameterError("period", f"must be a finite number of samples > 0, was {period!r}")
     return max(M_MIN, round(p / PERIOD_SCALES))
 
 
