@@ -46,10 +46,14 @@ Algorithm as implemented (:func:`hammerstein_test`):
    sample). The linear valve is one more row.
 4. Process: time constants ``TAU_GRID`` times the period (``scipy.signal.lfilter`` on all rows
    at once), dead times ``DEAD_GRID`` averaged samples (by lagged cross products, one matrix
-   product per time constant). For each combination gain, offset and drift follow by least
-   squares in closed form. Integrating processes are fitted on the first difference of PV
-   against the valve position (the integral of a slightly wrong valve would drift away from
-   PV and hide a good fit).
+   product). The linear valve may take any dead time up to a period, so that it can put PV at
+   any phase from OP (PV = -OP / C(q) in a closed loop under an external disturbance, at any
+   phase the controller sets); the sticky valve's dead time stays under ``STICKY_MAX_LAG``
+   (0.4 period), and the linear valve alone gets the time constants ``LIN_TAU_EXTRA`` too: a
+   fair comparison gives the simpler model the wider family. For each combination gain,
+   offset and drift follow by least squares in closed form. Integrating processes are
+   fitted on the first difference of PV against the valve position (the integral of a
+   slightly wrong valve would drift away from PV and hide a good fit).
 5. The best sticky candidate is refined once on a finer grid around it.
 
 Statistics: ``rss_sticky`` and ``rss_linear``, the residual mean squares of the best fits as
@@ -62,7 +66,9 @@ would reward any extra freedom. Sizes ``fs``, ``fd``, ``band``, ``jump`` in OP u
 ``gain`` in PV units per OP unit; ``tau`` and ``dead_time`` in seconds.
 
 Vote: ``+1`` when the sticky valve explains PV (``1 - rss_sticky >= EXPLAINED_YES``), clearly
-better than the linear one (``improvement >= IMPROVE_YES``) and the criterion agrees
+better than the linear one (``improvement >= IMPROVE_YES``, and at least ``GAIN_YES`` of PV's
+variance more: when a linear valve already explains 99 % of a sinusoidal PV, a relative gain
+on the last 1 % is a detail of the model, not a valve) and the criterion agrees
 (``delta_aic > 0``); ``-1`` when the linear valve explains PV (``1 - rss_linear >=
 EXPLAINED_NO``) and the sticky one adds nothing (``improvement <= IMPROVE_NO``); ``0``
 otherwise.
@@ -110,12 +116,15 @@ S_GRID = np.array([0.3, 0.5, 0.65, 0.8, 0.9, 0.97])  # of the median OP swing
 J_GRID = np.array([0.08, 0.35, 1.0])  # of S
 S_REFINE = np.array([0.93, 0.965, 1.0, 1.035, 1.07])
 J_REFINE = np.array([0.6, 1.0, 1.6])
+LIN_TAU_EXTRA = np.array([0.003, 0.15, 0.45, 1.5, 4.0])  # linear valve only
 TAU_REFINE = np.array([0.55, 0.75, 1.0, 1.35, 1.8])
 SIZE_TOL = 0.05  # fits within 5 % of the best residual count as equally good for sizing
 TAU_GRID = np.array([0.01, 0.03, 0.08, 0.25, 0.8])  # of the period
-DEAD_GRID = np.array([0, 1, 2, 3, 5, 8])  # averaged samples
+DEAD_GRID = np.array([0, 1, 2, 3, 5, 8, 11, 14, 17, 20])  # averaged samples (20: a period)
+STICKY_MAX_LAG = 8  # the sticky valve's dead time stays under 0.4 period; the linear one's not
 EXPLAINED_YES = 0.7
 IMPROVE_YES = 0.3
+GAIN_YES = 0.02  # of PV's variance: the share the sticky valve explains beyond the linear one
 EXPLAINED_NO = 0.8
 IMPROVE_NO = 0.05
 EXTRA_PARAMETERS = 2
@@ -428,9 +437,13 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     s_band, jump = s_band[keep], jump[keep]
     rows = np.vstack((u[None, :], sticky_valve(u, piv, s_band, jump)))
     share, _ = _best(target, _responses(rows, per, integrating, TAU_GRID))
-    lin = share[:, 0, :]
+    # the linear valve also gets the time constants between and beyond the coarse grid
+    lin_taus = np.concatenate((TAU_GRID, LIN_TAU_EXTRA))
+    extra, _ = _best(target, _responses(u[None, :], per, integrating, LIN_TAU_EXTRA))
+    lin = np.concatenate((share[:, 0, :], extra[:, 0, :]))
     li = np.unravel_index(int(np.argmin(lin)), lin.shape)
-    sticky = share[:, 1:, :]
+    ns = int(np.count_nonzero(lags <= STICKY_MAX_LAG))
+    sticky = share[:, 1:, :ns]
     # the band trades off against the dead time (a smaller band slips earlier, a longer
     # dead time delays PV as much): of the fits near the best, take the widest band
     best = float(np.min(sticky))
@@ -447,14 +460,15 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     if integrating:
         taus, taus_lin = TAU_GRID[:1], TAU_GRID[:1]
     else:
-        taus, taus_lin = TAU_GRID[ti] * TAU_REFINE, TAU_GRID[li[0]] * TAU_REFINE
+        taus, taus_lin = TAU_GRID[ti] * TAU_REFINE, lin_taus[li[0]] * TAU_REFINE
     share2, gain2 = _best(target, _responses(sticky_valve(u, piv, s2, j2), per, integrating,
                                              taus))
+    share2, gain2 = share2[..., :ns], gain2[..., :ns]
     share_l, _ = _best(target, _responses(u[None, :], per, integrating, taus_lin))
     lj = np.unravel_index(int(np.argmin(share_l)), share_l.shape)
     rss_lin = min(float(share_l[lj]), float(lin[li]))
     tau_lin = float(taus_lin[lj[0]]) if float(share_l[lj]) <= float(lin[li]) else float(
-        TAU_GRID[li[0]])
+        lin_taus[li[0]])
     lag_lin = int(lags[lj[2]]) if float(share_l[lj]) <= float(lin[li]) else int(lags[li[1]])
     rss_st = min(float(np.min(share2)), best)
     near = np.argwhere(share2 <= rss_st + SIZE_TOL * max(rss_st, 1e-12))
@@ -522,7 +536,8 @@ def _effective_n(target: _Target, y: FloatArray, lag: int) -> float:
 
 def _vote(rss_st: float, rss_lin: float, improvement: float, delta_aic: float,
           fd: float) -> tuple[int, str]:
-    if 1.0 - rss_st >= EXPLAINED_YES and improvement >= IMPROVE_YES and delta_aic > 0:
+    if (1.0 - rss_st >= EXPLAINED_YES and improvement >= IMPROVE_YES
+            and rss_lin - rss_st >= GAIN_YES and delta_aic > 0):
         return 1, (f"a sticky valve (fd {fd:.3g} OP units) explains {1 - rss_st:.0%} of PV, "
                    f"a linear one {max(1 - rss_lin, 0.0):.0%}")
     if 1.0 - rss_lin >= EXPLAINED_NO and improvement <= IMPROVE_NO:

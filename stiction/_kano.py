@@ -26,12 +26,20 @@ Algorithm as implemented (:func:`kano_test`):
    * OP travelled: its net change (on the ``m``-sample means) is at least ``eps_op =
      max(OP_Z sd_op sqrt(2 / m), OP_RANGE range_op)``,
    * monotonically: the net change is at least ``MONOTONE`` of OP's total variation over the
-     run (integral action ramping OP against a stuck valve, not OP wandering),
+     run, taken on the means of ``PARTS`` equal parts of it (integral action ramping OP
+     against a stuck valve, not OP wandering; parts, so that noise does not add up),
    * with PV off its centre: the run's mean PV is at least ``OFFSET`` of PV's half range from
      the middle of PV's 2-98 % range (not the median: a limit cycle spends longer at one
      level than at the other). A valve stuck away from where it should be leaves an error
      that drives the ramp; a healthy loop holding PV on setpoint while OP drifts against a
      slow disturbance (the known false alarm of this pattern) has PV on its centre.
+   * it ends in a slip: PV's mean over the second scale after the interval differs from its
+     mean over the interval's last scale by at least ``SLIP`` of PV's range plus ``STILL_Z``
+     standard errors of that difference (our addition: otherwise the flat top of a
+     sinusoidal PV, where OP is still moving because it lags PV by a quarter period or more,
+     would count as stuck; a sinusoid moves at most sin(1.5 pi / 16) = 0.29 of its range
+     between means 1.5 scales apart). An interval that runs into the end of the window,
+     where its slip cannot show, is not asked for one.
    * The controller acts one way: across the accepted intervals, the sign of OP's travel
      times the sign of PV's offset must be the same (the majority sign is kept; the others
      are dropped and counted).
@@ -43,7 +51,8 @@ Algorithm as implemented (:func:`kano_test`):
 
 Vote: ``+1`` when at least ``MIN_INTERVALS`` intervals hold ``index >= INDEX_YES``;
 ``-1`` when PV is still most of the time (``still_share >= STILL_SHARE_NO``), OP travelled
-well beyond its noise, and yet ``index <= INDEX_NO`` (PV stands still only when OP does); ``0``
+well beyond its noise, and yet no still interval shows OP ramping (PV stands still only when
+OP does); ``0``
 otherwise, in particular when PV keeps moving (``still_share`` below the minimum): then PV is
 no proxy for the valve position and the test cannot see a stuck valve.
 
@@ -82,7 +91,9 @@ STILL_RANGE = 0.03  # of PV's 2-98 % range per scale
 OP_Z = 5.0
 OP_RANGE = 0.05  # of OP's 2-98 % range
 MONOTONE = 0.7
+PARTS = 8  # parts of a run over which OP's monotony is judged
 OFFSET = 0.25  # of PV's half range
+SLIP = 0.3  # of PV's range: how far PV moves within two scales after a stuck interval
 RUN_MIN = 2  # scales
 MIN_INTERVALS = 2
 INDEX_YES = 0.15
@@ -173,22 +184,34 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
     a, b = t[a], t[b - 1] + 1  # sample positions [a, b)
     long_ = (b - a) >= RUN_MIN * m
     a, b = a[long_], b[long_]
-    # OP's total variation on m-sample means, averaged over the m phases of the grid:
-    # tv(i, j) = sum over t in [i, j - 2m] of |mean(t + m) - mean(t)| / m, by prefix sums
     mu = (cu[m:] - cu[:-m]) / m  # mu[t]: mean of u[t:t + m]
-    dmu = np.concatenate(([0.0], np.cumsum(np.abs(mu[m:] - mu[:-m]))))
-    total_tv = float(dmu[-1]) / m
+    # OP's total travel on m-sample means, averaged over the m phases of the grid
+    total_tv = float(np.sum(np.abs(mu[m:] - mu[:-m]))) / m
     if a.size:
         mu_a = mu[a]  # OP mean over the first and last scale of the run
         mu_b = mu[b - m]
         travel = mu_b - mu_a
-        tv = (dmu[np.maximum(b - 2 * m + 1, a)] - dmu[a]) / m
+        # monotone: OP's total variation over at most PARTS equal parts of the run (parts of
+        # at least one scale), so that noise does not add up along a long run
+        parts = np.clip((b - a) // m, 1, PARTS)
+        frac = np.minimum(np.arange(PARTS + 1)[None, :], parts[:, None]) / parts[:, None]
+        pos = a[:, None] + np.rint(frac * (b - m - a)[:, None]).astype(np.intp)
+        tv = np.sum(np.abs(np.diff(mu[pos], axis=1)), axis=1)
         offset = (cy[b] - cy[a]) / (b - a)
-        ok = ((np.abs(travel) >= eps_u) & (np.abs(travel) >= MONOTONE * tv)
-              & (np.abs(offset) >= OFFSET * 0.5))
+        # the interval ends in a slip: PV's mean one to two scales later has moved away
+        end = np.minimum(b + 2 * m, n)
+        after = (cy[end] - cy[end - m]) / m
+        unseen = b + 2 * m > n  # the window ends before a slip could show
+        slip = unseen | (np.abs(after - (cy[b] - cy[b - m]) / m)
+                         >= SLIP + STILL_Z * sd_y * math.sqrt(2.0 / m))
+        ramp = ((np.abs(travel) >= eps_u) & (np.abs(travel) >= MONOTONE * tv)
+                & (np.abs(offset) >= OFFSET * 0.5))
+        ramps = int(np.count_nonzero(ramp))
+        ok = ramp & slip
         a, b, travel, offset = a[ok], b[ok], travel[ok], offset[ok]
     else:
         travel = offset = np.empty(0)
+        ramps = 0
     dropped = 0
     if a.size:
         sign = np.sign(travel) * np.sign(offset)
@@ -201,11 +224,11 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
     travel_share = float(np.sum(np.abs(travel))) / total_tv if total_tv > 0 else 0.0
     band = median(np.abs(travel)) * r_op if count else None
     moved = (float(np.max(u)) - float(np.min(u))) >= 10.0 * eps_u
-    vote, note = _vote(index, count, still_share, moved, band)
+    vote, note = _vote(index, count, still_share, moved and ramps == 0, band)
     return Kano(index, min(travel_share, 1.0), still_share, count, dropped, band, vote, note)
 
 
-def _vote(index: float, count: int, still_share: float, moved: bool,
+def _vote(index: float, count: int, still_share: float, never_stuck: bool,
           band: float | None) -> tuple[int, str]:
     if count >= MIN_INTERVALS and index >= INDEX_YES:
         return 1, (f"PV stood still while OP ramped in {count} intervals ({index:.0%} of the "
@@ -213,6 +236,6 @@ def _vote(index: float, count: int, still_share: float, moved: bool,
     if still_share < STILL_SHARE_MIN:
         return 0, (f"PV keeps moving ({still_share:.0%} of samples still): PV is no proxy for "
                    "the valve position here")
-    if moved and index <= INDEX_NO and still_share >= STILL_SHARE_NO:
+    if never_stuck and index <= INDEX_NO and still_share >= STILL_SHARE_NO:
         return -1, "PV stood still only while OP did: no stuck valve seen"
     return 0, f"stuck intervals cover {index:.0%} of the window: too few to tell"
