@@ -25,18 +25,22 @@ Algorithm as implemented (:func:`ellipse_band`):
    the algebraic distance; a 3 x 3 generalised eigenproblem.
 5. From the conic: the chord through the centre parallel to the OP axis (the widest one:
    horizontal chords have their midpoints on a diameter) is the apparent stiction band
-   ``band`` (OP units); the ellipse's whole extent along OP, ``2 amplitude``; their ratio
-   ``width_ratio = band / (2 amplitude)`` in [0, 1], which is ``|sin(phase)|`` of the filtered
-   PV against the filtered OP; ``fit_rms``, the RMS Sampson (first-order geometric) distance
-   of the points from the ellipse over its mean radius; ``band_share``, the share of OP's
+   ``band`` (OP units); the filtered OP's swing, ``2 amplitude``; their ratio ``width_ratio``
+   in [0, 1], which for sinusoids is ``|sin(phase)|``; ``band_share``, the share of OP's
    variance inside the pass band.
+6. On the fundamental alone (``[BAND_LO, FUND_HI]`` times 1 / period): ``phase_deg``, the
+   angle of the one complex gain from OP to PV that fits all frequency bins of the band best
+   (0: PV in phase with OP, 180: against it), and ``coherence``, the share of PV's power in
+   the band that this gain explains (1: a clean elliptic pattern; in closed loop with a
+   constant setpoint it is high whatever the cause, it drops with setpoint moves, noise and
+   several oscillations at once).
 
 Vote (constants below; each stated where it comes from):
 
-* ``0`` when the cloud is not an ellipse, when it strays from the fit (``fit_rms >
-  FIT_RMS_MAX``) or when the pass band holds less than ``BAND_SHARE_MIN`` of OP's variance: no
-  clean pattern, no opinion.
-* ``-1`` when the ellipse collapses towards a line, ``width_ratio < THIN``: PV moves with OP
+* ``0`` when the cloud admits no ellipse, when PV keeps no steady phase to OP (``coherence <
+  COHERENCE_MIN``) or when the pass band holds less than ``BAND_SHARE_MIN`` of OP's
+  variance: no clean pattern, no opinion.
+* ``-1`` when the pattern collapses towards a line, ``|sin(phase)| < THIN``: PV moves with OP
   (or against it) at the oscillation frequency, so there is no band for the valve to stick in
   and OP does not ramp while PV waits. That is the pattern of a loop tuned too tightly
   (proportional action carries the cycle) or of a linear valve in an integrating loop.
@@ -48,14 +52,17 @@ Vote (constants below; each stated where it comes from):
   cycle is not clean").
 
 What it sees and where it fails. The band of the simulated sticky flow loop of He & Wang's
-Table 4 comes out within 15 % of the OP swing between valve jumps (2 fd for K = 2), and
-scales with OP's units; it is the band seen by OP, which includes the controller's overshoot
-after each jump (dead time, slow PV) and underestimates when the jump itself carries most of
-OP's motion (proportional kicks). A thin ellipse is reliable evidence against a stick-slip
-cycle in a self-regulating loop only if the valve is not hidden behind a slow process; in a
-level loop pass ``integrating=True``, otherwise the PV-OP pattern of a sticky valve is thin
-too. THIN was set where the paper's sticky loops (width ratio 0.74-0.99) and the simulated
-aggressively tuned loop (0.05-0.15) leave a wide margin.
+Table 4 (case 2) comes out within 15 % of the OP swing between valve jumps (S = 2 fs - J,
+which is 2 fd for K = 2), that of their level loop (Table 5, ``integrating=True``) within
+25 %, and both scale with OP's units. It is the band seen by OP: it includes the controller's
+overshoot after each jump (dead time, slow PV) and underestimates when the jump itself
+carries much of OP's motion (proportional kicks). A thin ellipse is evidence against a
+stick-slip cycle: in a self-regulating loop the valve sits still while integral action ramps
+OP, which puts PV a quarter period or more from OP; pass ``integrating=True`` for level
+loops, otherwise a sticky level loop's PV-OP pattern is thin too. THIN leaves a wide margin
+between the paper's sticky loops (|sin(phase)| 0.93-1.0 in ``stiction.scenarios``) and the
+simulated aggressively tuned loop (0.10-0.12). A cloud within ``LINE`` of a line is not
+fitted (the algebraic fit degenerates there): its band is the fundamental's width.
 """
 
 from __future__ import annotations
@@ -83,7 +90,8 @@ POINTS_PER_PERIOD = 24  # the filtered signals hold nothing above 3.5 / period: 
 FUND_HI = 1.5  # the fundamental's band, for the phase and coherence
 COHERENCE_MIN = 0.5  # share of PV's power at the fundamental that one complex gain from OP explains
 BAND_SHARE_MIN = 0.3  # share of OP variance the pass band must hold
-THIN = 0.3  # width ratio below which the ellipse has collapsed towards a line
+THIN = 0.3  # |sin(phase)| below which the ellipse has collapsed towards a line
+LINE = 0.1  # |sin(phase)| below which the cloud is taken as a line, not fitted (6 degrees)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -195,15 +203,21 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
                      f"fewer than {MIN_CYCLES:g} periods")
     if not (np.all(np.isfinite(op)) and np.all(np.isfinite(pv))):
         return _none("non-finite samples")
-    u = detrend(op)
-    y = detrend(pv)
+    # scale first: the filters and the fit then see numbers of order one whatever the units
+    r_op, r_pv = float(np.ptp(op)), float(np.ptp(pv))
+    if not (r_op > 0 and r_pv > 0):
+        return _none("OP or PV does not move")
+    if not (math.isfinite(r_op) and math.isfinite(r_pv)):
+        return _none("OP or PV beyond floating-point range")
+    u = detrend((op - op[0]) / r_op)
+    y = detrend((pv - pv[0]) / r_pv)
     step = max(1, int(p // POINTS_PER_PERIOD))
     su = float(np.std(u))
     sy = float(np.std(y))
-    if not (su > 0 and sy > 0 and math.isfinite(su) and math.isfinite(sy)):
+    if not (su > 0 and sy > 0):
         return _none("OP or PV does not move")
-    # scale first: the filters and the fit then see numbers of order one whatever the units
-    spec, f = _spectra(u / su, y / sy)
+    su *= r_op
+    spec, f = _spectra(u * (r_op / su), y / sy)
     f0 = 1.0 / p
     if integrating:
         spec[1] *= 2j * np.pi * f
@@ -231,11 +245,19 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     geo = None if coef is None else _geometry(coef)
     if coef is None or geo is None:
         return _none("the filtered OP-PV cloud admits no ellipse", share)
-    chord, extent = geo
+    chord, _ = geo
     scale = su * su2  # OP units per unit of xs
+    # the swing of the filtered OP itself: a cloud that is nearly a line fits a needle-thin
+    # (numerically fragile) ellipse whose ends lie far beyond the points; no chord is wider
+    # than the points
+    extent = float(np.max(xs) - np.min(xs))
+    chord = min(chord, extent)
+    thin = abs(math.sin(math.radians(phase)))
+    if thin < LINE:
+        chord = extent * thin  # a line: the algebraic fit degenerates; the fundamental's width
     band = chord * scale
     amplitude = extent / 2.0 * scale
-    ratio = min(chord / extent, 1.0)
+    ratio = chord / extent if extent > 0 else 0.0
     if not all(math.isfinite(v) for v in (band, amplitude, ratio, coherence, phase)):
         return _none("ellipse fit did not converge", share)
     vote, note = _vote(band, ratio, coherence, phase, share)
