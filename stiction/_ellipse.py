@@ -111,7 +111,8 @@ class EllipseFit:
     note: str
 
     def evidence(self) -> Evidence:
-        return Evidence("ellipse", self.band, self.vote, self.note)
+        """Test ``"ellipse"``, value the width ratio (unit-free; the band is in the note)."""
+        return Evidence("ellipse", self.width_ratio, self.vote, self.note)
 
 
 def _none(note: str, band_share: float | None = None) -> EllipseFit:

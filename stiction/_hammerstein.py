@@ -161,6 +161,7 @@ class HammersteinFit:
     note: str
 
     def evidence(self) -> Evidence:
+        """Test ``"hammerstein"``, value the improvement over the linear valve."""
         return Evidence("hammerstein", self.improvement, self.vote, self.note)
 
 

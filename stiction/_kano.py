@@ -123,6 +123,7 @@ class Kano:
     note: str
 
     def evidence(self) -> Evidence:
+        """Test ``"kano"``, value Kano's index (share of the window stuck)."""
         return Evidence("kano", self.index, self.vote, self.note)
 
 

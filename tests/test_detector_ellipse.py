@@ -179,7 +179,8 @@ def test_evidence() -> None:
     fit = ellipse_band(op, pv, period=period)
     ev = fit.evidence()
     assert isinstance(ev, Evidence)
-    assert (ev.test, ev.value, ev.vote, ev.note) == ("ellipse", fit.band, fit.vote, fit.note)
+    assert (ev.test, ev.value, ev.vote, ev.note) == ("ellipse", fit.width_ratio, fit.vote,
+                                                     fit.note)
 
 
 @settings(max_examples=150, derandomize=True, database=None, deadline=None,
