@@ -83,14 +83,15 @@ __all__ = ["EllipseFit", "ellipse_band"]
 BAND_LO = 0.5  # pass band, in multiples of the oscillation frequency 1 / period
 BAND_HI = 3.5  # keeps the third harmonic (the square and triangle shapes), drops the fifth
 EDGE = 0.5  # periods dropped at each end (rectangular-window ringing)
-MIN_CYCLES = 2.5  # periods the window must hold
-MIN_POINTS = 16
+MIN_CYCLES = 2.5  # periods the window must hold (as stiction._analyze.MIN_CYCLES)
+MIN_POINTS = 16  # points for a 5-parameter conic with some to spare
 MIN_PERIOD = 8.0  # samples, as stiction._oscillation.MIN_PERIOD (the third harmonic needs 3)
 POINTS_PER_PERIOD = 24  # the filtered signals hold nothing above 3.5 / period: fit every k-th
 FUND_HI = 1.5  # the fundamental's band, for the phase and coherence
-COHERENCE_MIN = 0.5  # share of PV's power at the fundamental that one complex gain from OP explains
-BAND_SHARE_MIN = 0.3  # share of OP variance the pass band must hold
-THIN = 0.3  # |sin(phase)| below which the ellipse has collapsed towards a line
+# our choices, not the paper's: below half, the pattern is mostly something else
+COHERENCE_MIN = 0.5  # PV power at the fundamental one complex gain from OP must explain
+BAND_SHARE_MIN = 0.3  # share of OP variance the pass band must hold (sticky loops 0.65-0.99)
+THIN = 0.3  # |sin(phase)| below which the ellipse has collapsed (see the module doc)
 LINE = 0.1  # |sin(phase)| below which the cloud is taken as a line, not fitted (6 degrees)
 
 

@@ -90,23 +90,24 @@ from ._validate import FloatArray, median
 __all__ = ["Kano", "kano_test"]
 
 M_DEFAULT = 5  # samples per scale when no period is given
-M_MIN = 2
-PERIOD_SCALES = 16  # scales per period
-STILL_Z = 3.0
+M_MIN = 2  # an average needs two samples
+PERIOD_SCALES = 16  # scales per period (a sixteenth: fine enough for a jump, coarse enough
+#                     to average noise; the sinusoid bound of SLIP depends on it)
+STILL_Z = 3.0  # standard errors: PV moved beyond noise
 STILL_RANGE = 0.03  # of PV's 2-98 % range per scale
-OP_Z = 5.0
+OP_Z = 5.0  # standard errors: OP travelled beyond noise (stricter than PV's still test)
 OP_RANGE = 0.05  # of OP's 2-98 % range
-MONOTONE = 0.7
+MONOTONE = 0.7  # net OP travel / total variation (as stiction._stickslip.MONOTONE)
 PARTS = 8  # parts of a run over which OP's monotony is judged
 OFFSET = 0.25  # of PV's half range
 SLIP = 0.3  # of PV's range: how far PV moves within two scales after a stuck interval
-RUN_MIN = 2  # scales
-MIN_INTERVALS = 2
-INDEX_YES = 0.15
-INDEX_NO = 0.02
+RUN_MIN = 2  # scales a stuck interval lasts at least
+MIN_INTERVALS = 2  # one interval is one episode: the stick-slip test's job, not this one's
+INDEX_YES = 0.15  # sticky simulations 0.12-0.68, see the module doc
+INDEX_NO = 0.02  # ramping-while-still share at most this for -1
 STILL_SHARE_MIN = 0.2  # below it PV keeps moving: no proxy for the valve
 STILL_SHARE_NO = 0.5  # PV still this often, never while OP travels: vote -1
-MIN_SAMPLES = 20
+MIN_SAMPLES = 20  # below this no scale fits twice into a run
 
 
 @dataclasses.dataclass(frozen=True)
