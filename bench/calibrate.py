@@ -13,9 +13,9 @@ and to ship in the package (:mod:`stiction._weights`), too small to learn any on
 Data: the plant records (grouped by tag), the Tennessee Eastman runs (by run) and the
 realistic simulations (by loop), each data set weighing one third and within it the sticky
 and the other windows half each (so the confidence is for even prior odds), within the
-plant records each tag equally (23 of 35 sticky records are one valve). Scores are cross-validated by
-group, never by record: five folds of groups, and leave-one-data-set-out (fit on two, score
-the third), which is the nearest we have to loops from elsewhere.
+plant records each tag equally (23 of 35 sticky records are one valve). Scores are
+cross-validated by group, never by record: five folds of groups, and leave-one-data-set-out
+(fit on two, score the third), which is the nearest we have to loops from elsewhere.
 
 ``python -m bench calibrate`` prints the held-out folds; ``python -m bench calibrate
 --write`` also rewrites ``stiction/_weights.py`` from the fit on all data.
@@ -162,8 +162,7 @@ def main(argv: Sequence[str] = ()) -> None:
     from stiction._combine import STICTION_CONFIDENCE  # noqa: PLC0415
     cross_validate(t, STICTION_CONFIDENCE)
     beta = fit(t)
-    print("  fit on all data: bias {:+.2f}; per test (+vote weight / -vote weight):".format(
-        beta[0]))
+    print(f"  fit on all data: bias {beta[0]:+.2f}; per test (+vote weight / -vote weight):")
     k = len(TESTS)
     for i, name in enumerate(TESTS):
         print(f"    {name:<14} {beta[1 + i]:5.2f} / {beta[1 + k + i]:5.2f}")

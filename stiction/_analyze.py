@@ -15,20 +15,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._assessment import Assessment, Verdict
-from ._detect import NO_STICTION_SI, STICTION_SI, stiction_index
+from ._assessment import Assessment, Evidence, Verdict
+from ._combine import NO_STICTION_CONFIDENCE, STICTION_CONFIDENCE, confidence
 from ._errors import ParameterError
-from ._oscillation import MIN_PERIOD, detect_oscillation
+from ._evidence import MIN_CYCLES, Cycle, Findings, find_cycle, gather
+from ._oscillation import MIN_PERIOD
 from ._quality import check_quality
 from ._quantify import Quantification, quantify
-from ._stickslip import stick_slip
 from ._validate import FloatArray
 
 __all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
 
 PROCESSES = ("self-regulating", "integrating")
-MIN_CYCLES = 2.5
-"""Fewer periods than this in the window: too short to judge the shape reliably."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,24 +99,6 @@ def _validate(
     if not 1.0 <= k_ <= 2.0:
         raise ParameterError("k", f"must lie in [1, 2], was {k!r}")
     return op_a, pv_a, ts_, kp_, delay_, span, k_
-
-
-def _stick_slip_verdict(op: FloatArray, pv: FloatArray, warnings: list[str],
-                        **base: Any) -> Assessment | None:
-    """Verdict ``stiction`` (not sized) when a window without a usable limit cycle shows
-    stick-slip episodes (:mod:`._stickslip`); None otherwise. Not sized: the He-Wang
-    quantification rests on a limit cycle with one jump per half cycle."""
-    ss = stick_slip(op, pv)
-    if not ss.detected:
-        return None
-    e = max(ss.episodes, key=lambda ep: abs(ep.jump))
-    count = len(ss.episodes)
-    return Assessment(
-        Verdict.STICTION,
-        f"stick-slip without a limit cycle: {count} episode{'s' if count > 1 else ''} where "
-        f"OP ramped (largest: {e.op_travel:+.3g} over {e.stuck} samples) with PV still, then "
-        f"PV jumped ({e.jump:+.3g}) and OP did not; not sized (needs a limit cycle)",
-        warnings=tuple(warnings), **base)
 
 
 def analyze(
@@ -202,94 +182,142 @@ def analyze_details(
     if q.reason is not None:
         return Details(Assessment(Verdict.BAD_DATA, q.reason, warnings=tuple(warnings)))
     op_c, pv_c = q.op, q.pv
-
-    det_name, det = ("PV", pv_c) if integrating else ("OP", op_c)
-    osc = detect_oscillation(det)
-    if not osc.oscillating or osc.period is None:
-        slip = _stick_slip_verdict(op_c, pv_c, warnings)
-        if slip is not None:
-            return Details(slip, op_c, pv_c)
-        return Details(Assessment(Verdict.NOT_OSCILLATING, f"{det_name}: {osc.reason}",
-                                  warnings=tuple(warnings)), op_c, pv_c)
-    period = osc.period
-    period_s = period * ts_
-    if period < MIN_PERIOD:
-        return Details(Assessment(
-            Verdict.BAD_DATA, f"oscillation period {period:.1f} samples is too short to see "
-            f"its shape (need {MIN_PERIOD:g}): sample faster", oscillating=True,
-            period_s=period_s, warnings=tuple(warnings)), op_c, pv_c)
-    cycles = op_c.size / period
-    if cycles < MIN_CYCLES:
-        return Details(Assessment(
-            Verdict.BAD_DATA, f"window too short for the period: {cycles:.1f} cycles of "
-            f"{period_s:.0f} s, need {MIN_CYCLES:g} (at least "
-            f"{MIN_CYCLES * period_s:.0f} s)", oscillating=True, period_s=period_s,
-            warnings=tuple(warnings)), op_c, pv_c)
-
-    si = stiction_index(det, period)
-    base: dict[str, Any] = {"oscillating": True, "period_s": period_s,
-                            "stiction_index": si.si}
+    cycle = find_cycle(op_c, pv_c, integrating=integrating)
+    found = gather(op_c, pv_c, cycle, integrating=integrating, ts=ts_)
+    conf = confidence(found.evidence)
+    si_test = "si_pv" if integrating else "si_op"
+    si = next(e.value for e in found.evidence if e.test == si_test)
+    base: dict[str, Any] = {
+        "oscillating": cycle.cycling,
+        "period_s": None if cycle.period is None else cycle.period * ts_,
+        "stiction_index": si, "confidence": conf, "evidence": found.evidence}
     quant: Quantification | None = None
-    if si.si is None:
-        slip = _stick_slip_verdict(op_c, pv_c, warnings, **base)
-        if slip is not None:
-            return Details(slip, op_c, pv_c)
-        return Details(Assessment(Verdict.UNDETERMINED, f"too few clean half periods in {det_name} "
-                                  f"to fit ({si.half_periods})", warnings=tuple(warnings),
-                                  **base), op_c, pv_c)
-    if not si.resolved or si.si < STICTION_SI:
-        if force_quantify:
-            quant = quantify(op_c, pv_c, period=period, ts=ts_, kp=kp_, delay=delay_,
-                             integrating=integrating, k=k_)
-        if not si.resolved:
-            reason = (f"SI {si.si:.2f} not trusted: {det_name} is too noisy to tell a triangle "
-                      "from a sine (both fit to within the noise); quantification not run")
-            verdict = Verdict.UNDETERMINED
-        elif si.si <= NO_STICTION_SI:
-            reason = (f"SI {si.si:.2f} <= {NO_STICTION_SI}: {det_name} oscillates like a sine "
-                      "(tuning or a disturbance, not stiction); quantification not run")
-            verdict = Verdict.NO_STICTION
-        else:
-            reason = (f"SI {si.si:.2f} between {NO_STICTION_SI} and {STICTION_SI}: {det_name} "
-                      "neither clearly triangular nor sinusoidal; quantification not run")
-            verdict = Verdict.UNDETERMINED
+    if force_quantify and _limit_cycle(cycle, op_c.size):
+        quant = quantify(op_c, pv_c, period=cycle.period or 0.0, ts=ts_, kp=kp_,
+                         delay=delay_, integrating=integrating, k=k_)
+
+    if conf < STICTION_CONFIDENCE:
+        verdict, reason = _not_stiction(cycle, found.evidence, conf)
         return Details(Assessment(verdict, reason, warnings=tuple(warnings), **base),
                        op_c, pv_c, quant)
 
-    quant = quantify(op_c, pv_c, period=period, ts=ts_, kp=kp_, delay=delay_,
-                     integrating=integrating, k=k_)
-    warnings.extend(quant.warnings)
-    if quant.reason is not None:
-        return Details(Assessment(
-            Verdict.STICTION, f"SI {si.si:.2f} >= {STICTION_SI}: stiction; not sized: "
-            f"{quant.reason}", warnings=tuple(warnings), **base), op_c, pv_c, quant)
-    assert quant.fd_op is not None  # set whenever reason is None
-    if quant.multi_jump:
-        return Details(Assessment(
-            Verdict.UNDETERMINED, f"SI {si.si:.2f} looks like stiction, but the valve jumps "
-            "more than once per half cycle: the cycle is not a pure stiction limit cycle "
-            "(likely tuning), so it is not sized", multi_jump=True,
-            cycles_used=quant.cycles_used, warnings=tuple(warnings), **base),
-            op_c, pv_c, quant)
-    if quant.poor_fit:
-        return Details(Assessment(
-            Verdict.UNDETERMINED, f"SI {si.si:.2f} looks like stiction, but PV between the "
-            f"jumps does not follow one valve jump's response in {quant.poor_fit} half cycles "
-            "(a load disturbance, or a creeping valve), so it is not called stiction and not "
-            "sized", cycles_used=quant.cycles_used, warnings=tuple(warnings), **base),
-            op_c, pv_c, quant)
+    size = _size(op_c, pv_c, cycle, found, quant=quant, ts=ts_, kp=kp_, delay=delay_,
+                 integrating=integrating, k=k_)
+    warnings.extend(size.warnings)
+    said = _said(found.evidence, 1)
+    head = f"stiction (confidence {conf:.2f}; {said})"
+    if size.fd_op is None:
+        return Details(Assessment(Verdict.STICTION, f"{head}; not sized: {size.method}",
+                                  multi_jump=size.multi_jump, warnings=tuple(warnings), **base),
+                       op_c, pv_c, size.quant)
     scale = 1.0 if span is None else span
-    fs_txt = "" if quant.fs_op is None else f", fs {quant.fs_op / scale:.4g}"
-    no_kp = "" if kp_ is not None else " (fs needs kp)"
-    unit = "of span" if span is not None else "in OP units (give op_range for fractions of span)"
+    unit = "of span" if span is not None else "OP units (give op_range for fractions of span)"
+    fs_txt = "" if size.fs_op is None else f", fs {size.fs_op / scale:.4g}"
+    no_kp = "" if size.fs_op is not None or kp_ is not None else " (fs needs kp)"
 
     def frac(x: float | None) -> float | None:
         return None if x is None or span is None else x / span
 
     return Details(Assessment(
         Verdict.STICTION,
-        f"SI {si.si:.2f} >= {STICTION_SI}: stiction, fd {quant.fd_op / scale:.4g}{fs_txt} "
-        f"{unit} over {quant.cycles_used} cycles{no_kp}",
-        fd=frac(quant.fd_op), fs=frac(quant.fs_op), jump=frac(quant.jump_op),
-        fd_op=quant.fd_op, fs_op=quant.fs_op, cycles_used=quant.cycles_used,
-        warnings=tuple(warnings), **base), op_c, pv_c, quant)
+        f"{head}; fd {size.fd_op / scale:.4g}{fs_txt} {unit}, {size.method}{no_kp}",
+        fd=frac(size.fd_op), fs=frac(size.fs_op), jump=frac(size.jump_op),
+        fd_op=size.fd_op, fs_op=size.fs_op, cycles_used=size.cycles,
+        multi_jump=size.multi_jump, warnings=tuple(warnings), **base), op_c, pv_c, size.quant)
+
+
+def _limit_cycle(cycle: Cycle, n: int) -> bool:
+    """A cycle the He-Wang quantification can read: slow enough to see the jumps and long
+    enough to average over."""
+    return cycle.period is not None and cycle.period >= MIN_PERIOD and \
+        n / cycle.period >= MIN_CYCLES
+
+
+def _said(evidence: tuple[Evidence, ...], vote: int) -> str:
+    names = [e.test for e in evidence if e.vote == vote]
+    if not names:
+        return "no test says so" if vote > 0 else "no test says otherwise"
+    first = next(e.note for e in evidence if e.vote == vote)
+    word = "for" if vote > 0 else "against"
+    return f"{word}: {', '.join(names)} ({first})"
+
+
+def _not_stiction(cycle: Cycle, evidence: tuple[Evidence, ...], conf: float
+                  ) -> tuple[Verdict, str]:
+    """Verdict and reason when the confidence stays under the stiction threshold."""
+    voted = [e for e in evidence if e.vote]
+    if not cycle.cycling and conf <= 0.5:
+        src = cycle.op if cycle.source != "PV" else cycle.pv
+        return Verdict.NOT_OSCILLATING, (f"no cycle in OP or PV ({src.osc.reason}); "
+                                         f"confidence of stiction {conf:.2f}")
+    if conf <= NO_STICTION_CONFIDENCE:
+        return Verdict.NO_STICTION, (f"not stiction (confidence {conf:.2f}; "
+                                     f"{_said(evidence, -1)})")
+    fast = ""
+    if cycle.period is not None and cycle.period < MIN_PERIOD:
+        fast = (f"; the cycle of {cycle.period:.1f} samples is too fast to see its shape: "
+                "sample faster")
+    if not voted:
+        return Verdict.UNDETERMINED, (f"no test can tell on this window (confidence "
+                                      f"{conf:.2f}){fast}")
+    return Verdict.UNDETERMINED, (f"the tests disagree or are weak (confidence {conf:.2f}; "
+                                  f"{_said(evidence, 1)}; {_said(evidence, -1)}){fast}")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Size:
+    fd_op: float | None
+    fs_op: float | None
+    jump_op: float | None
+    cycles: int
+    method: str
+    multi_jump: bool = False
+    warnings: tuple[str, ...] = ()
+    quant: Quantification | None = None
+
+
+def _size(op: FloatArray, pv: FloatArray, cycle: Cycle, found: Findings, *,
+          quant: Quantification | None, ts: float, kp: float | None, delay: float,
+          integrating: bool, k: float) -> _Size:
+    """fd (and fs, with kp) in OP units, by the first method that applies: the OP at the PV
+    jumps of a clean limit cycle (He & Wang 2014), the He-Wang valve fitted to PV, the
+    apparent stiction band of the OP-PV ellipse (Choudhury et al. 2006) or of the stuck
+    intervals (Kano et al. 2004), the OP travel before stick-slip episodes."""
+    why = "no limit cycle to read the jumps from"
+    multi = False
+    warn: tuple[str, ...] = ()
+    if _limit_cycle(cycle, op.size):
+        assert cycle.period is not None
+        if quant is None:
+            quant = quantify(op, pv, period=cycle.period, ts=ts, kp=kp, delay=delay,
+                             integrating=integrating, k=k)
+        warn = quant.warnings
+        multi = quant.multi_jump
+        if quant.reason is not None:
+            why = quant.reason
+        elif multi:
+            why = "the valve jumps more than once per half cycle"
+        elif quant.poor_fit:
+            why = (f"PV between the jumps does not follow one valve jump's response in "
+                   f"{quant.poor_fit} half cycles")
+        elif quant.fd_op is not None and quant.fd_op > 0:
+            return _Size(quant.fd_op, quant.fs_op, quant.jump_op, quant.cycles_used,
+                         f"from OP at the PV jumps over {quant.cycles_used} cycles "
+                         "(He & Wang 2014)", multi, warn, quant)
+    ham = found.hammerstein
+    if found.vote("hammerstein") > 0 and ham.fd is not None and ham.fd > 0:
+        return _Size(ham.fd, ham.fs if kp is not None else None, None, 0,
+                     f"from the He-Wang valve fitted to PV ({why})", multi, warn, quant)
+    ell = found.ellipse
+    if ell is not None and ell.band is not None and ell.band > 0 and \
+            found.vote("ellipse") >= 0:
+        return _Size(ell.band / 2.0, None, None, 0, "half the apparent stiction band of the "
+                     f"OP-PV ellipse (Choudhury et al. 2006; {why})", multi, warn, quant)
+    if found.kano.band is not None and found.kano.band > 0:
+        return _Size(found.kano.band / 2.0, None, None, 0, "half the OP travel while PV "
+                     f"stood still (Kano et al. 2004; {why})", multi, warn, quant)
+    if found.stick_slip.detected:
+        travel = float(np.median([abs(e.op_travel) for e in found.stick_slip.episodes]))
+        return _Size(travel / 2.0, None, None, 0, "half the OP travel before the stick-slip "
+                     f"episodes ({why})", multi, warn, quant)
+    return _Size(None, None, None, 0, why, multi, warn, quant)

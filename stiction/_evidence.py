@@ -16,8 +16,20 @@ oscillation the shape tests look at, :func:`gather` runs every test and returns 
 ``horch``
     Horch (1999) odd or even OP-PV cross-correlation, or for an integrating loop Horch
     (2000) PV curvature (:mod:`._horch`).
+``ellipse``
+    Choudhury et al. (2006) OP-PV pattern of the band-passed cycle (:mod:`._ellipse`):
+    a thin ellipse (PV follows OP) says not stiction; it also sizes the apparent band.
+``kano``
+    Kano et al. (2004) stuck intervals: PV still while OP ramps, then a slip
+    (:mod:`._kano`).
 ``stick_slip``
-    Kano et al. (2004) style stick-slip episodes (:mod:`._stickslip`): only ever +1.
+    Stick-slip episodes without a cycle (:mod:`._stickslip`): only ever +1.
+``hammerstein``
+    The He-Wang valve in a Hammerstein fit against a linear valve: does a sticky valve
+    explain PV better, and by how much (:mod:`._hammerstein`).
+``fast_cycle``
+    A cycle too fast for its shape (under 8 samples a period): a sustained limit cycle in
+    OP and PV with PV lagging OP, or following it (:mod:`._fastcycle`).
 
 The cycle. Set-point and load steps inside a window hide a limit cycle from the ACF (the
 straight-line detrend leaves a step, which dominates it), so each signal is also looked at
@@ -37,14 +49,20 @@ import numpy as np
 from ._assessment import Evidence
 from ._bicoherence import bicoherence_test
 from ._detect import NO_STICTION_SI, STICTION_SI, stiction_index
+from ._ellipse import EllipseFit, ellipse_band
+from ._fastcycle import fast_cycle
+from ._hammerstein import HammersteinFit, hammerstein_test
 from ._horch import horch_test
+from ._kano import Kano, kano_test
 from ._oscillation import MIN_PERIOD, Oscillation, baseline, detect_oscillation, detrend
-from ._stickslip import stick_slip
+from ._stickslip import StickSlip, stick_slip
 from ._validate import FloatArray
 
-__all__ = ["MIN_CYCLES", "TESTS", "Cycle", "find_cycle", "gather", "gather_for_calibration"]
+__all__ = ["MIN_CYCLES", "TESTS", "Cycle", "Findings", "find_cycle", "gather",
+           "gather_for_calibration"]
 
-TESTS = ("si_op", "si_pv", "bicoherence", "horch", "stick_slip")
+TESTS = ("si_op", "si_pv", "bicoherence", "horch", "ellipse", "kano", "stick_slip",
+         "hammerstein", "fast_cycle")
 MIN_REGULARITY = 0.5
 MIN_CYCLES = 2.5
 """Fewer periods than this in the window: too short to judge a cycle's shape."""
@@ -76,11 +94,18 @@ class Cycle:
         return self.period is not None
 
 
+def _unstepped(x: FloatArray) -> FloatArray:
+    """``x`` without its running-median baseline and straight line."""
+    if x.size < 48:
+        return detrend(x)
+    return detrend(x - baseline(x, x.size // BASELINE_FRACTION))
+
+
 def _signal(x: FloatArray) -> Signal:
     best: Signal | None = None
     variants = [detrend(x)]
     if x.size >= 48:
-        variants.append(detrend(x - baseline(x, x.size // BASELINE_FRACTION)))
+        variants.append(_unstepped(x))
     for y in variants:
         osc = detect_oscillation(y, min_regularity=MIN_REGULARITY)
         sig = osc.significance if osc.oscillating else -1.0
@@ -124,8 +149,7 @@ def _si(name: str, s: Signal, fallback: float | None) -> Evidence:
     return Evidence(name, si.si, 0, f"{label} neither triangular nor sinusoidal")
 
 
-def _stick_slip(op: FloatArray, pv: FloatArray) -> Evidence:
-    ss = stick_slip(op, pv)
+def _stick_slip(ss: StickSlip) -> Evidence:
     if not ss.detected:
         note = ("stick-slip episodes with opposite gain signs" if ss.episodes
                 else "no stick-slip episode")
@@ -138,21 +162,45 @@ def _stick_slip(op: FloatArray, pv: FloatArray) -> Evidence:
                     f"then PV jumped ({e.jump:+.3g}) and OP did not")
 
 
-def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool
-           ) -> tuple[Evidence, ...]:
+@dataclasses.dataclass(frozen=True)
+class Findings:
+    """Every test's evidence (:data:`TESTS` order) and the results that carry a size."""
+
+    evidence: tuple[Evidence, ...]
+    ellipse: EllipseFit | None
+    kano: Kano
+    hammerstein: HammersteinFit
+    stick_slip: StickSlip
+
+    def vote(self, test: str) -> int:
+        return next(e.vote for e in self.evidence if e.test == test)
+
+
+def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool, ts: float
+           ) -> Findings:
     """Every test of :data:`TESTS` on a clean window (equal-length, finite)."""
     p = cycle.period
     horch_period = p if p is not None and p >= 1.0 else None
+    no_cycle = "no cycle to look at"
+    ell = (ellipse_band(cycle.op.x, cycle.pv.x, period=horch_period, integrating=integrating)
+           if horch_period is not None else None)
+    kano = kano_test(op, pv, period=horch_period)
+    ham = hammerstein_test(op, pv, ts=ts, period=horch_period, integrating=integrating)
+    ss = stick_slip(op, pv)
     found = {
+        "ellipse": ell.evidence() if ell is not None else Evidence("ellipse", None, 0, no_cycle),
+        "kano": kano.evidence(),
+        "hammerstein": ham.evidence(),
+        "fast_cycle": fast_cycle(_unstepped(op), _unstepped(pv)).evidence(),
         "si_op": _si("si_op", cycle.op, p),
         "si_pv": _si("si_pv", cycle.pv, p),
         "bicoherence": bicoherence_test(cycle.pv.x, period=horch_period).evidence(),
         "horch": (horch_test(cycle.op.x, cycle.pv.x, period=horch_period,
                              integrating=integrating).evidence() if p is not None
-                  else Evidence("horch", None, 0, "no cycle to correlate")),
-        "stick_slip": _stick_slip(op, pv),
+                  else Evidence("horch", None, 0, no_cycle)),
+        "stick_slip": _stick_slip(ss),
     }
-    return tuple(found[name] for name in TESTS)
+    return Findings(tuple(found[name] for name in TESTS), ell, kano, ham, ss)
 
 
 def gather_for_calibration(op: np.ndarray, pv: np.ndarray, *, ts: float,
@@ -165,4 +213,4 @@ def gather_for_calibration(op: np.ndarray, pv: np.ndarray, *, ts: float,
     if q.reason is not None or q.not_responding is not None:
         return [0] * len(TESTS)
     cycle = find_cycle(q.op, q.pv, integrating=integrating)
-    return [e.vote for e in gather(q.op, q.pv, cycle, integrating=integrating)]
+    return [e.vote for e in gather(q.op, q.pv, cycle, integrating=integrating, ts=ts).evidence]

@@ -297,6 +297,12 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
         if ok.any():
             tau = _fit_tau(y, bounds[ok], onsets[:-1][ok], period)
         onsets = _refine(y, onsets, tau, reach=3, guard=1)
+    # refining moves each onset on its own; two that cross (a fast ringing cycle whose
+    # fitted curves meet out of order) would give a half cycle of negative length
+    onsets = np.sort(onsets)
+    onsets = onsets[np.concatenate(([True], np.diff(onsets) >= 1.0))]
+    if onsets.size < 3:
+        return None
     c = np.floor(onsets).astype(np.intp)
     bounds = np.column_stack((c[:-1] + 1, c[1:] + 1))
     a, b, r, cnt = _segment_sums(y, bounds, onsets[:-1], tau)

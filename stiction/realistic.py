@@ -108,6 +108,7 @@ class LoopRecord:
     fs: float
     fd: float
     description: str
+    vp: FloatArray  # the valve position, fraction of span, sampled as OP (not measured)
 
     @property
     def sticky(self) -> bool:
@@ -227,19 +228,23 @@ def _filtered(rng: np.random.Generator, n: int, tau_samples: float) -> FloatArra
 
 
 def _loads(d: _Draw) -> FloatArray:
-    """Load at the process input, fraction of span, one value per simulation step. A sticky
-    valve's loop gets a coloured load below its stiction band (SD 5-30 % of fs): a loop
-    whose loads swamp the stiction shows no stiction pattern to label it by."""
+    """Load at the process input, fraction of span, one value per simulation step: coloured
+    noise, a bounded random walk and steps, each of a few percent of span. A sticky valve's
+    loop gets them scaled to its static friction instead (coloured SD 5-30 % of fs, walk
+    and steps up to 1.5 fs): a loop whose loads swamp the stiction shows no stiction
+    pattern to label it by, and is not what a plant engineer calls a sticky valve."""
     rng, n = d.rng, d.n_sim
     cl = (d.ti if not d.integrating else d.ti / 2.0) / d.ts_sim  # closed-loop scale, steps
-    sd = 0.01 * rng.uniform(0.1, 1.5) if d.cause != "stiction" else \
-        0.5 * (d.s + d.j) * rng.uniform(0.05, 0.3)
+    sticky = d.cause == "stiction"
+    unit = 0.5 * (d.s + d.j) if sticky else 0.01
+    sd = unit * (rng.uniform(0.05, 0.3) if sticky else rng.uniform(0.1, 1.5))
     load = sd * _filtered(rng, n, cl * _loguniform(rng, 0.3, 10.0))
     walk = np.cumsum(rng.standard_normal(n))
     walk = signal.detrend(walk) if rng.random() < 0.5 else walk - walk[0]
-    load += 0.01 * rng.uniform(0.0, 3.0) * walk / max(float(np.ptp(walk)), 1e-12)
+    big = 1.5 if sticky else 3.0
+    load += unit * rng.uniform(0.0, big) * walk / max(float(np.ptp(walk)), 1e-12)
     for _ in range(rng.poisson(0.7)):
-        load[rng.integers(0, n) :] += 0.01 * rng.uniform(-3.0, 3.0)
+        load[rng.integers(0, n) :] += unit * rng.uniform(-big, big)
     return load
 
 
@@ -342,9 +347,11 @@ def _record(d: _Draw, op: FloatArray, pv: FloatArray, vp: FloatArray) -> LoopRec
     if rng.random() < 0.3:  # historian averages over the interval
         op = op.reshape(-1, OVERSAMPLE).mean(axis=1)
         pv = pv.reshape(-1, OVERSAMPLE).mean(axis=1)
+        vp = vp.reshape(-1, OVERSAMPLE).mean(axis=1)
         d.notes.append("averaged samples")
     else:
         op, pv = op[OVERSAMPLE - 1 :: OVERSAMPLE], pv[OVERSAMPLE - 1 :: OVERSAMPLE]
+        vp = vp[OVERSAMPLE - 1 :: OVERSAMPLE]
     if rng.random() < 1 / 6:
         op = np.round(op * 1000.0) / 1000.0 if rng.random() < 0.5 else np.round(op * 4095) / 4095
         d.notes.append("OP quantised")
@@ -363,7 +370,7 @@ def _record(d: _Draw, op: FloatArray, pv: FloatArray, vp: FloatArray) -> LoopRec
             f"ts {d.ts:g} s, {d.n} samples, OP in {unit}; " + ", ".join(d.notes))
     return LoopRecord(d.cause, d.index, d.ts, "integrating" if d.integrating else
                       "self-regulating", np.ascontiguousarray(op), np.ascontiguousarray(pv),
-                      (lo, hi), fs, fd, desc)
+                      (lo, hi), fs, fd, desc, np.ascontiguousarray(vp))
 
 
 def _upstream(draws: Sequence[_Draw], seed: int) -> list[FloatArray]:
