@@ -37,6 +37,8 @@ class Details:
     op: FloatArray | None = None  # the cleaned window
     pv: FloatArray | None = None
     quantification: Quantification | None = None
+    cycle: Cycle | None = None
+    findings: Findings | None = None
 
 
 def _series(name: str, value: ArrayLike) -> FloatArray:
@@ -199,7 +201,7 @@ def analyze_details(
     if conf < STICTION_CONFIDENCE:
         verdict, reason = _not_stiction(cycle, found.evidence, conf)
         return Details(Assessment(verdict, reason, warnings=tuple(warnings), **base),
-                       op_c, pv_c, quant)
+                       op_c, pv_c, quant, cycle, found)
 
     size = _size(op_c, pv_c, cycle, found, quant=quant, ts=ts_, kp=kp_, delay=delay_,
                  integrating=integrating, k=k_)
@@ -209,7 +211,7 @@ def analyze_details(
     if size.fd_op is None:
         return Details(Assessment(Verdict.STICTION, f"{head}; not sized: {size.method}",
                                   multi_jump=size.multi_jump, warnings=tuple(warnings), **base),
-                       op_c, pv_c, size.quant)
+                       op_c, pv_c, size.quant, cycle, found)
     scale = 1.0 if span is None else span
     unit = "of span" if span is not None else "OP units (give op_range for fractions of span)"
     fs_txt = "" if size.fs_op is None else f", fs {size.fs_op / scale:.4g}"
@@ -223,7 +225,8 @@ def analyze_details(
         f"{head}; fd {size.fd_op / scale:.4g}{fs_txt} {unit}, {size.method}{no_kp}",
         fd=frac(size.fd_op), fs=frac(size.fs_op), jump=frac(size.jump_op),
         fd_op=size.fd_op, fs_op=size.fs_op, cycles_used=size.cycles,
-        multi_jump=size.multi_jump, warnings=tuple(warnings), **base), op_c, pv_c, size.quant)
+        multi_jump=size.multi_jump, warnings=tuple(warnings), **base), op_c, pv_c, size.quant,
+        cycle, found)
 
 
 def _limit_cycle(cycle: Cycle, n: int) -> bool:

@@ -11,6 +11,7 @@ import dataclasses
 import json
 import os
 import sys
+import textwrap
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -263,9 +264,14 @@ def _plot_analysis(path: Path, d: Details, ts: float,
                    op_range: tuple[float, float] | None) -> None:
     plt = _pyplot()
     a = d.assessment
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    title = textwrap.fill(f"{a.verdict}: {a.reason}", 150)
+    fig = plt.figure(figsize=(14, 6.5))
+    grid = fig.add_gridspec(2, 3)
+    ax1 = fig.add_subplot(grid[0, :2])
+    ax2 = fig.add_subplot(grid[1, :2], sharex=ax1)
+    ax3 = fig.add_subplot(grid[:, 2])
     if d.op is None or d.pv is None:
-        fig.suptitle(f"{a.verdict}: {a.reason}", fontsize=9)
+        fig.suptitle(title, fontsize=8)
         fig.savefig(path, dpi=90)
         return
     op, pv = d.op, d.pv
@@ -297,9 +303,31 @@ def _plot_analysis(path: Path, d: Details, ts: float,
     ax1.legend(loc="upper right", fontsize=8)
     ax2.legend(loc="upper right", fontsize=8)
     ax2.set_xlabel("t, s")
-    fig.suptitle(f"{a.verdict}: {a.reason}", fontsize=9)
+    _plot_pattern(ax3, d, op, pv)
+    fig.suptitle(title, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
+
+
+def _plot_pattern(ax: Any, d: Details, op: np.ndarray, pv: np.ndarray) -> None:
+    """The OP-PV pattern: the window's points and, where a cycle was found, the cycle with
+    steps and drift removed (what the ellipse test fits), with the votes beside it."""
+    ax.plot(op, pv, ".", ms=1.5, color="0.7", label="OP-PV")
+    c = d.cycle
+    if c is not None and c.cycling:
+        x = c.op.x + float(np.mean(op))
+        y = c.pv.x + float(np.mean(pv))
+        ax.plot(x, y, "-", lw=0.5, color="tab:blue", label="the cycle, steps removed")
+    ax.set_xlabel("OP")
+    ax.set_ylabel("PV")
+    ax.set_title("OP-PV pattern", fontsize=9)
+    ax.legend(loc="upper right", fontsize=7)
+    votes = {1: "+", -1: "-", 0: "."}
+    text = "\n".join(f"{votes.get(e.vote, '.')} {e.test}" for e in d.assessment.evidence)
+    if d.assessment.confidence is not None:
+        text += f"\nconfidence {d.assessment.confidence:.2f}"
+    ax.text(0.02, 0.02, text, transform=ax.transAxes, fontsize=7, family="monospace",
+            va="bottom")
 
 
 # ----------------------------------------------------------------------------- reproduce
