@@ -17,15 +17,15 @@ demo: $(STAMP)
 	$(BIN)/stiction-gateway demo
 
 test: $(STAMP)
-	$(BIN)/ruff check stiction gateway tests bench
-	$(BIN)/mypy stiction gateway
+	$(BIN)/ruff check stiction gateway plcsim tests bench
+	$(BIN)/mypy stiction gateway plcsim
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
-	$(BIN)/ruff check stiction gateway tests bench
+	$(BIN)/ruff check stiction gateway plcsim tests bench
 
 typecheck: $(STAMP)
-	$(BIN)/mypy stiction gateway
+	$(BIN)/mypy stiction gateway plcsim
 
 bench: $(STAMP)
 	$(BIN)/python -m bench

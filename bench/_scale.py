@@ -1,12 +1,13 @@
 """Machinery of the scale benchmarks: simulated PLCs and the gateway as separate processes.
 
 :func:`run_scale` starts N simulated PLCs (``python -m bench._scale sim CONFIG``, each a
-:class:`gateway.plc_sim.PlcSim` serving its share of M loops on 127.0.0.1) and one gateway
-(``python -m bench._scale gateway SPEC``, a real :class:`gateway.app.Gateway` polling all of
-them), lets the gateway poll for ``duration`` seconds and collects what each child measured
-about itself: the gateway its own CPU time (``time.process_time``, all its threads, not its
-analysis workers), RSS, poll start times and the samples in its windows; each PLC the requests
-it served and the time its steps took. Every child is killed on exit, whatever happens.
+:class:`plcsim.sim.PlcSim` serving its share of M loops on 127.0.0.1) and one gateway
+(``python -m bench._scale gateway SPEC``, a real :class:`gateway.runtime.gateway.Gateway`
+polling all of them), lets the gateway poll for ``duration`` seconds and collects what each
+child measured about itself: the gateway its own CPU time (``time.process_time``, all its
+threads, not its analysis workers), RSS, poll start times and the samples in its windows; each
+PLC the requests it served and the time its steps took. Every child is killed on exit,
+whatever happens.
 
 Figures (see :class:`ScaleResult`):
 
@@ -21,8 +22,8 @@ Figures (see :class:`ScaleResult`):
   ticks that started during the round.
 
 The gateway config is built from the per-PLC configs that
-:func:`gateway.plc_sim.gateway_config` writes, joined into one document whose result blocks
-:func:`gateway.plc_sim.assign_result_blocks` numbers across all loops (3,276 per result unit
+:func:`plcsim.sim.gateway_config` writes, joined into one document whose result blocks
+:func:`plcsim.sim.assign_result_blocks` numbers across all loops (3,276 per result unit
 id: 10,000 loops use unit ids 1-4), and validated as a whole by
 :func:`gateway.config.parse_config`: the gateway runs a real config, result server included.
 """
@@ -49,11 +50,11 @@ from typing import Any
 import numpy as np
 import yaml
 
-from gateway.app import Gateway
 from gateway.config import Config, parse_config
 from gateway.inputs.base import Quality
-from gateway.plc_sim import PlcSim, _build_banks, assign_result_blocks, load_sim_config
-from gateway.plc_sim import gateway_config as sim_gateway_config
+from gateway.runtime.gateway import Gateway
+from plcsim.sim import PlcSim, _build_banks, assign_result_blocks, load_sim_config
+from plcsim.sim import gateway_config as sim_gateway_config
 
 REGISTERS_PER_LOOP = 4
 MAX_REGISTERS = 125

@@ -26,7 +26,7 @@ from pathlib import Path
 import yaml
 
 from bench._scale import default_plcs, gateway_config, rss_bytes, sim_config
-from gateway.app import Gateway
+from gateway.runtime.gateway import Gateway
 
 SIZES = (100, 1000, 10000)
 WINDOW_S = 7200.0

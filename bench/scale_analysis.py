@@ -4,9 +4,10 @@ Windows are simulated with stiction's LoopBank, loop i running scenario
 ``SCENARIO_MIX[i % 10]`` (7 of 10 sticky: a pessimistic plant), 0.05 PV noise, Ts 1 s.
 
 1. Per window, one process: the median (and p90) time of what a worker does for one loop
-   (:func:`gateway.analysis.analyze_batch`: window fill, gap handling, ``stiction.analyze``)
+   (:func:`gateway.runtime.scheduler.analyze_batch`: window fill, gap handling,
+   ``stiction.analyze``)
    for 1 h, 2 h and 4 h windows, split by sticky / not sticky scenario.
-2. With the gateway's worker pool (:class:`gateway.analysis.AnalysisScheduler`, default
+2. With the gateway's worker pool (:class:`gateway.runtime.scheduler.AnalysisScheduler`, default
    workers = cores - 1): loops analysed per second for a bank of K loops per window length.
 3. End to end: one full analysis round of 10,000 two-hour windows inside a gateway that
    keeps polling 10,000 loops from 20 simulated PLCs (separate processes, bench/_scale.py),
@@ -28,12 +29,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench._scale import SCENARIO_MIX, percentile, run_scale
-from gateway.analysis import AnalysisScheduler, BankRef, LoopJob, analyze_batch
 from gateway.config import LoopConfig, PointConfig
+from gateway.core.store import ResultStore
+from gateway.core.windows import WindowBank
 from gateway.inputs.base import Quality
-from gateway.plc_sim import _build_banks, parse_sim_config
-from gateway.store import ResultStore
-from gateway.windows import WindowBank
+from gateway.runtime.scheduler import AnalysisScheduler, BankRef, LoopJob, analyze_batch
+from plcsim.sim import _build_banks, parse_sim_config
 from stiction.scenarios import SCENARIOS
 
 WINDOWS_S = (3600, 7200, 14400)

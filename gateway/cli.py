@@ -12,11 +12,9 @@ import logging
 import sys
 from pathlib import Path
 
-from . import plc_sim
-from .app import install_stop_signals, run
 from .config import load_config
-from .demo import run_demo
 from .errors import ConfigError, GatewayError
+from .runtime.gateway import install_stop_signals, run
 
 __all__ = ["build_parser", "main"]
 
@@ -56,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args, rest = parser.parse_known_args(argv)
     if args.command == "opcua-cert":  # its own parser: pass the remaining arguments on
-        from . import opcua_cert
+        from .wire import certs as opcua_cert
 
         return opcua_cert.main(rest)
     if rest:
@@ -92,6 +90,8 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "run":
         return run(load_config(args.config), args.config)
     if args.command == "plc-sim":
+        from plcsim import sim as plc_sim  # the simulator ships beside the daemon, loaded on demand
+
         sim_cfg = plc_sim.load_sim_config(args.config)
         if args.write_gateway_config:
             text = plc_sim.dump_yaml(plc_sim.gateway_config(sim_cfg))
@@ -109,6 +109,8 @@ def _dispatch(args: argparse.Namespace) -> int:
         asyncio.run(serve_sim())
         return 0
     if args.command == "demo":
+        from plcsim.demo import run_demo
+
         logging.getLogger().setLevel(logging.WARNING)  # the table is the output
         asyncio.run(run_demo(args.duration))
         return 0

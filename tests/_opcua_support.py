@@ -10,9 +10,9 @@ from collections.abc import Coroutine
 from pathlib import Path
 from typing import Any, TypeVar
 
-from gateway.inputs.opcua_config import OpcUaDeviceConfig, OpcUaSecurity
-from gateway.opcua_cert import make_certificate
-from gateway.plcsim_opcua import ServerSecurity
+from gateway.inputs.opcua.config import OpcUaDeviceConfig, OpcUaSecurity
+from gateway.wire.certs import make_certificate
+from plcsim.opcua import ServerSecurity
 
 T = TypeVar("T")
 

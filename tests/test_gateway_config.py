@@ -14,8 +14,8 @@ from gateway.cli import main
 from gateway.config import load_config, parse_config
 from gateway.errors import ConfigError
 from gateway.inputs.modbus import ModbusDeviceOptions, ModbusPoint
-from gateway.plc_sim import assign_result_blocks, load_sim_config, parse_sim_config
-from gateway.plc_sim import gateway_config as sim_gateway_config
+from plcsim.sim import assign_result_blocks, load_sim_config, parse_sim_config
+from plcsim.sim import gateway_config as sim_gateway_config
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 

@@ -16,12 +16,12 @@ from gateway_helpers import run, scrape
 from prometheus_client.parser import text_string_to_metric_families
 from pymodbus.client import AsyncModbusTcpClient
 
-from gateway.app import Gateway
 from gateway.config import parse_config
-from gateway.demo import DEMO_LOOPS, demo_configs
+from gateway.core.store import VERDICT_CODES
 from gateway.inputs.modbus import decode_registers
-from gateway.plc_sim import PlcSim, parse_sim_config
-from gateway.store import VERDICT_CODES
+from gateway.runtime.gateway import Gateway
+from plcsim.demo import DEMO_LOOPS, demo_configs
+from plcsim.sim import PlcSim, parse_sim_config
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 

@@ -13,7 +13,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench._net import free_port
-from gateway.app import Gateway
 from gateway.errors import DeviceError
 from gateway.inputs.base import PointSpec, Quality
 from gateway.inputs.modbus import (
@@ -25,8 +24,9 @@ from gateway.inputs.modbus import (
     encode_values,
     plan_requests,
 )
-from gateway.plc_sim import PlcSim
-from gateway.result_server import RegisterServer
+from gateway.runtime.gateway import Gateway
+from gateway.wire.registers import RegisterServer
+from plcsim.sim import PlcSim
 
 ORDERS = ["big", "little"]
 FAKE = "gateway_fake_analyze:analyze"  # no analysis runs here; keeps stiction.analyze out

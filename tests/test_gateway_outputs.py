@@ -16,10 +16,10 @@ from prometheus_client import CollectorRegistry, generate_latest
 from pymodbus.client import AsyncModbusTcpClient
 
 from gateway.config import LoopConfig, PointConfig, ResultServerSettings
+from gateway.core.store import ResultStore
 from gateway.inputs.modbus import ModbusPoint, decode_registers
-from gateway.metrics import GatewayMetrics
-from gateway.result_server import ResultServer, result_block
-from gateway.store import ResultStore
+from gateway.outputs.prometheus.collector import GatewayMetrics
+from gateway.wire.registers import ResultServer, result_block
 from stiction import Assessment, Verdict
 
 STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,

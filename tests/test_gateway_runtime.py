@@ -16,9 +16,9 @@ import yaml
 
 from bench._net import free_port
 from gateway.config import load_config
+from gateway.core.windows import WindowBank, analysis_segment
 from gateway.inputs.base import Quality
-from gateway.plc_sim import load_sim_config
-from gateway.windows import WindowBank, analysis_segment
+from plcsim.sim import load_sim_config
 
 G, N = Quality.GOOD, Quality.NO_COMM
 CLI = [sys.executable, "-m", "gateway.cli"]

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from gateway.backoff import Backoff
-from gateway.sdnotify import Notifier, watchdog_interval
+from gateway.core.ticks import Backoff
+from gateway.runtime.sdnotify import Notifier, watchdog_interval
 
 
 @pytest.fixture

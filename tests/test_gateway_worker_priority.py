@@ -5,8 +5,8 @@ from __future__ import annotations
 import asyncio
 import os
 
-from gateway.analysis import WORKER_NICE, AnalysisScheduler
-from gateway.store import ResultStore
+from gateway.core.store import ResultStore
+from gateway.runtime.scheduler import WORKER_NICE, AnalysisScheduler
 
 
 def _worker_niceness(nice: int) -> tuple[int, int]:

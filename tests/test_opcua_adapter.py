@@ -25,8 +25,8 @@ from bench._net import free_port
 from gateway.errors import DeviceError
 from gateway.inputs.base import PointSpec, Quality
 from gateway.inputs.opcua import OpcUaInput
-from gateway.inputs.opcua_config import OpcUaPoint
-from gateway.plcsim_opcua import NAMESPACE_URI, OpcUaPlcServer
+from gateway.inputs.opcua.config import OpcUaPoint
+from plcsim.opcua import NAMESPACE_URI, OpcUaPlcServer
 from stiction.scenarios import scenario
 from stiction.simulate import LoopBank, LoopParams
 from stiction.valves import HeValve

@@ -13,14 +13,14 @@ from cryptography import x509
 from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from gateway.cli import main as gateway_main
-from gateway.opcua_cert import (
+from gateway.wire.certs import (
     application_uri_of,
     load_certificate_file,
     load_private_key_file,
     main,
     make_certificate,
 )
-from gateway.plcsim_opcua import OpcUaPlcServer, ServerSecurity
+from plcsim.opcua import OpcUaPlcServer, ServerSecurity
 
 
 def test_make_certificate_fits_opc_ua(tmp_path: Path) -> None:

@@ -13,14 +13,14 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.x509.oid import NameOID
 
-from gateway.inputs.opcua_config import (
+from gateway.inputs.opcua.config import (
     OpcUaDeviceConfig,
     OpcUaPoint,
     OpcUaSecurity,
     parse_opcua_device,
     parse_opcua_point,
 )
-from gateway.opcua_cert import load_certificate_file, load_private_key_file, make_certificate
+from gateway.wire.certs import load_certificate_file, load_private_key_file, make_certificate
 
 SRC = "gateway.yaml"
 

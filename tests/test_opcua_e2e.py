@@ -13,11 +13,11 @@ import pytest
 import yaml
 from _opcua_support import PASSWORD, USER, Pki, make_pki, run
 
-from gateway.app import Gateway
 from gateway.config import load_config
 from gateway.errors import ConfigError
 from gateway.inputs.base import Quality
-from gateway.plc_sim import PlcSim, gateway_config, load_sim_config
+from gateway.runtime.gateway import Gateway
+from plcsim.sim import PlcSim, gateway_config, load_sim_config
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(90)]
 FAKE = "opcua_fake_analyze:analyze"

@@ -22,8 +22,8 @@ import pytest
 from prometheus_client import CollectorRegistry
 from reliability_helpers import ScriptedPlc, config, device, feed, loop, read_codes, until
 
-from gateway.app import Gateway
 from gateway.inputs.base import Quality
+from gateway.runtime.gateway import Gateway
 from stiction import Verdict, analyze
 
 RNG = np.random.default_rng(3)

@@ -27,10 +27,10 @@ from reliability_helpers import (
     until,
 )
 
-from gateway.app import Gateway
 from gateway.cli import main
 from gateway.config import load_config
 from gateway.inputs.base import Quality
+from gateway.runtime.gateway import Gateway
 
 BAD = """\
 gateway: {analysis_intervall_s: 5}

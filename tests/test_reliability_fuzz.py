@@ -28,7 +28,7 @@ from hypothesis import strategies as st
 from prometheus_client import CollectorRegistry
 from reliability_helpers import FAKE, ScriptedPlc, config, device, feed, lateness, loop
 
-from gateway.app import Gateway
+from gateway.runtime.gateway import Gateway
 from stiction import Assessment, Verdict
 
 MAX_EXAMPLES = 4000

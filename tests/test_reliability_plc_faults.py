@@ -38,7 +38,7 @@ from reliability_helpers import (
 )
 
 from bench._net import free_port
-from gateway.app import Gateway
+from gateway.runtime.gateway import Gateway
 
 LATENESS_BOUND_S = 0.050  # a dead or silent device may delay a live one's ticks by this much
 PERIOD = 0.1

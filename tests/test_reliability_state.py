@@ -39,12 +39,18 @@ from reliability_helpers import (
 )
 
 from bench._net import free_port
-from gateway.app import Gateway
 from gateway.config import parse_config
+from gateway.core.store import ResultStore
+from gateway.core.windows import WindowBank
 from gateway.inputs.base import Quality
-from gateway.state import BankState, read_state, restore_state, snapshot, write_state
-from gateway.store import ResultStore
-from gateway.windows import WindowBank
+from gateway.outputs.statefile.format import (
+    BankState,
+    read_state,
+    restore_state,
+    snapshot,
+    write_state,
+)
+from gateway.runtime.gateway import Gateway
 
 
 def _wiggle(k: int, plc: ScriptedPlc) -> None:

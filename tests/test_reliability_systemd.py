@@ -36,9 +36,9 @@ from reliability_helpers import (
 )
 
 from bench._net import free_port
-from gateway.app import Gateway, _watchdog
-from gateway.sdnotify import Notifier
-from gateway.state import read_state
+from gateway.outputs.statefile.format import read_state
+from gateway.runtime.gateway import Gateway, _watchdog
+from gateway.runtime.sdnotify import Notifier
 
 SHUTDOWN_BOUND_S = 5.0
 WATCHDOG_USEC = 400_000  # pings every 0.2 s

@@ -26,8 +26,8 @@ from prometheus_client import (
 from prometheus_client.core import GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 
-from . import __version__
-from .store import VERDICT_CODES, ResultStore
+from ... import __version__
+from ...core.store import VERDICT_CODES, ResultStore
 
 __all__ = ["GatewayMetrics", "StoreCollector", "serve_metrics"]
 

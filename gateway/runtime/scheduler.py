@@ -30,14 +30,14 @@ from numpy.typing import NDArray
 
 from stiction import Assessment, Verdict
 
-from .config import LoopConfig
-from .inputs.base import Quality
-from .store import ResultStore
-from .windows import WindowBank, analysis_segment
+from ..config import LoopConfig
+from ..core.store import ResultStore
+from ..core.windows import WindowBank, analysis_segment
+from ..inputs.base import Quality
 
 __all__ = ["AnalysisScheduler", "BankRef", "LoopJob", "analyze_batch"]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("gateway.analysis")
 
 DEFAULT_ANALYZE = "stiction:analyze"
 WORKER_NICE = 10

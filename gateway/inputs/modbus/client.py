@@ -26,13 +26,13 @@ from numpy.typing import NDArray
 from pymodbus.client import AsyncModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
-from .. import _schema as s
-from .._schema import MISSING, Section
-from ..errors import DeviceError
-from .base import PointSpec, Quality, ReadResult
+from ...config import schema as s
+from ...config.schema import MISSING, Section
+from ...errors import DeviceError
+from ..base import PointSpec, Quality, ReadResult
 
 if TYPE_CHECKING:
-    from ..config import DeviceConfig
+    from ...config import DeviceConfig
 
 __all__ = [
     "TYPES",
@@ -48,7 +48,7 @@ __all__ = [
     "plan_requests",
 ]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("gateway.inputs.modbus")
 
 # type -> (registers, numpy big-endian dtype)
 TYPES: dict[str, tuple[int, str]] = {

@@ -56,17 +56,17 @@ from asyncua.ua.uaerrors import UaStatusCodeError
 from cryptography import x509
 from cryptography.hazmat.primitives import serialization
 
-from .._schema import MISSING
-from ..errors import DeviceError
-from ..opcua_cert import (
+from ...config.schema import MISSING
+from ...errors import DeviceError
+from ...wire.certs import (
     application_uri_of,
     certificate_from_bytes,
     describe_certificate,
     load_certificate_file,
     load_private_key_file,
 )
-from .base import PointSpec, Quality, ReadResult
-from .opcua_config import (
+from ..base import PointSpec, Quality, ReadResult
+from .config import (
     OpcUaDeviceConfig,
     OpcUaPoint,
     OpcUaSecurity,
@@ -75,12 +75,12 @@ from .opcua_config import (
 )
 
 if TYPE_CHECKING:
-    from .._schema import Section
-    from ..config import DeviceConfig
+    from ...config import DeviceConfig
+    from ...config.schema import Section
 
 __all__ = ["OpcUaInput", "create_input", "parse_device", "parse_point"]
 
-_log = logging.getLogger(__name__)
+_log = logging.getLogger("gateway.inputs.opcua")
 
 POLICY_CLASSES: dict[str, type[sp.SecurityPolicy]] = {
     "Basic256Sha256": sp.SecurityPolicyBasic256Sha256,

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from .inputs.base import Quality
+from ..inputs.base import Quality
 
 __all__ = ["WindowBank", "analysis_segment"]
 

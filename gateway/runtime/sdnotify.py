@@ -14,7 +14,7 @@ import time
 
 __all__ = ["Notifier", "watchdog_interval"]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("gateway.sdnotify")
 
 
 class Notifier:

@@ -19,10 +19,10 @@ from typing import Any, TypeGuard
 
 import yaml
 
-from . import _schema as s
-from ._schema import MISSING, Problems, Section
-from .errors import ConfigError
-from .inputs import protocol_names, protocol_plugin
+from ..errors import ConfigError
+from ..inputs import protocol_names, protocol_plugin
+from . import schema as s
+from .schema import MISSING, Problems, Section
 
 __all__ = [
     "RESULT_BLOCK_SIZE",

@@ -49,21 +49,21 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from gateway.config import RESULT_BLOCK_SIZE, RESULT_LOOPS_PER_UNIT
+from gateway.config import schema as s
+from gateway.config.schema import MISSING, Problems, Section
+from gateway.errors import ConfigError
+from gateway.inputs.modbus.client import encode_values
+from gateway.wire.registers import RegisterServer
 from stiction.scenarios import SCENARIOS, Scenario, scenario
 from stiction.simulate import LoopBank, LoopParams
 
-from . import _schema as s
-from ._schema import MISSING, Problems, Section
-from .config import RESULT_BLOCK_SIZE, RESULT_LOOPS_PER_UNIT
-from .errors import ConfigError
-from .inputs.modbus import encode_values
-from .plcsim_opcua import POLICY_TYPES, OpcUaPlcServer, ServerSecurity
-from .result_server import RegisterServer
+from .opcua import POLICY_TYPES, OpcUaPlcServer, ServerSecurity
 
 __all__ = ["PlcSim", "SimConfig", "SimLoop", "gateway_config", "load_sim_config",
            "parse_sim_config"]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("gateway.plc_sim")
 
 REGISTERS_PER_LOOP = 4
 

@@ -43,17 +43,17 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from .backoff import Backoff
-from .config import DeviceConfig
-from .errors import DeviceError
-from .inputs.base import DeviceInput, PointSpec, Quality, ReadResult
-from .metrics import GatewayMetrics
-from .store import ResultStore
-from .windows import WindowBank
+from ..config import DeviceConfig
+from ..core.store import ResultStore
+from ..core.ticks import Backoff
+from ..core.windows import WindowBank
+from ..errors import DeviceError
+from ..inputs.base import DeviceInput, PointSpec, Quality, ReadResult
+from ..outputs.prometheus.collector import GatewayMetrics
 
 __all__ = ["BankSlot", "DevicePoller", "ProcessClock"]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("gateway.poller")
 
 STALE_POLLS = 3
 BACKOFF_CAP_S = 30.0

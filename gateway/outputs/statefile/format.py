@@ -43,15 +43,15 @@ from numpy.typing import NDArray
 
 from stiction import Assessment
 
-from .config import Config, LoopConfig
-from .inputs.base import Quality
-from .store import LoopResult, ResultStore
-from .windows import WindowBank
+from ...config import Config, LoopConfig
+from ...core.store import LoopResult, ResultStore
+from ...core.windows import WindowBank
+from ...inputs.base import Quality
 
 __all__ = ["FORMAT", "VERSION", "BankState", "StateError", "load_columns", "loop_signature",
            "read_state", "restore_state", "result_signature", "snapshot", "write_state"]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("gateway.state")
 
 FORMAT = "stiction-gateway-state"
 VERSION = 1

@@ -27,13 +27,13 @@ from pymodbus.constants import ExcCodes
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
-from .config import RESULT_BLOCK_SIZE, LoopConfig, ResultServerSettings
-from .inputs.modbus import encode_values
-from .store import LoopResult, ResultStore
+from ..config import RESULT_BLOCK_SIZE, LoopConfig, ResultServerSettings
+from ..core.store import LoopResult, ResultStore
+from ..inputs.modbus.client import encode_values
 
 __all__ = ["RegisterServer", "ResultServer", "result_block"]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("gateway.result_server")
 
 READ_CODES = {3: "holding", 4: "input"}
 

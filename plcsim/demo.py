@@ -25,9 +25,10 @@ import sys
 import time
 from typing import TextIO
 
-from .app import Gateway, install_stop_signals
-from .config import parse_config
-from .plc_sim import PlcSim, gateway_config, parse_sim_config
+from gateway.config import parse_config
+from gateway.runtime.gateway import Gateway, install_stop_signals
+
+from .sim import PlcSim, gateway_config, parse_sim_config
 
 __all__ = ["DEMO_LOOPS", "demo_configs", "run_demo"]
 

@@ -26,8 +26,8 @@ from asyncua import ua
 from asyncua.ua.uaerrors import UaError
 from cryptography.hazmat.primitives.serialization import Encoding, PublicFormat
 
-from .._schema import number
-from ..opcua_cert import application_uri_of, load_certificate_file, load_private_key_file
+from ...config.schema import number
+from ...wire.certs import application_uri_of, load_certificate_file, load_private_key_file
 
 __all__ = [
     "DEFAULT_TIMEOUT_S",

@@ -35,16 +35,14 @@ from wsgiref.simple_server import WSGIServer
 import numpy as np
 from prometheus_client import CollectorRegistry
 
-from .analysis import DEFAULT_ANALYZE, AnalysisScheduler, BankRef
-from .backoff import Backoff
-from .config import Config, DeviceConfig, LoopConfig, load_config
-from .errors import ConfigError
-from .inputs import DeviceInput, PointSpec, protocol_plugin
-from .metrics import GatewayMetrics, serve_metrics
-from .poller import BACKOFF_BASE_S, BankSlot, DevicePoller, ProcessClock
-from .result_server import ResultServer
-from .sdnotify import Notifier, watchdog_interval
-from .state import (
+from ..config import Config, DeviceConfig, LoopConfig, load_config
+from ..core.store import ResultStore
+from ..core.ticks import Backoff
+from ..core.windows import WindowBank
+from ..errors import ConfigError
+from ..inputs import DeviceInput, PointSpec, protocol_plugin
+from ..outputs.prometheus.collector import GatewayMetrics, serve_metrics
+from ..outputs.statefile.format import (
     BankState,
     load_columns,
     loop_signature,
@@ -53,12 +51,14 @@ from .state import (
     snapshot,
     write_state,
 )
-from .store import ResultStore
-from .windows import WindowBank
+from ..wire.registers import ResultServer
+from .poller import BACKOFF_BASE_S, BankSlot, DevicePoller, ProcessClock
+from .scheduler import DEFAULT_ANALYZE, AnalysisScheduler, BankRef
+from .sdnotify import Notifier, watchdog_interval
 
 __all__ = ["Gateway", "run", "serve"]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("gateway.app")
 
 
 def _points(loops: tuple[LoopConfig, ...]) -> list[PointSpec]:

@@ -40,11 +40,11 @@ from asyncua.server.user_managers import UserManager
 from asyncua.ua.status_codes import StatusCodes
 from numpy.typing import ArrayLike
 
-from .opcua_cert import application_uri_of, load_certificate_file
+from gateway.wire.certs import application_uri_of, load_certificate_file
 
 __all__ = ["NAMESPACE_URI", "POLICY_TYPES", "OpcUaPlcServer", "ServerSecurity"]
 
-_log = logging.getLogger(__name__)
+_log = logging.getLogger("gateway.plcsim_opcua")
 
 NAMESPACE_URI = "urn:stiction-gateway:plc-sim"
 POLICY_TYPES: dict[tuple[str, str], ua.SecurityPolicyType] = {

@@ -1,0 +1,1 @@
+"""The simulated PLC and the demo."""
