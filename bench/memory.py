@@ -47,7 +47,7 @@ async def _child(loops: int, window_s: float) -> dict[str, float]:
         rss0 = rss_bytes()[0]
         gw = Gateway(config, serve_http=False)
         rss1 = rss_bytes()[0]
-        banks = [s.bank for p in gw.pollers for s in p.slots]
+        banks = [s.bank for p in gw.pollers for s in p.groups]
         samples = sum(b.size * len(b.loops) for b in banks)
         batch = gw.scheduler.batch_size
         size = max(b.size for b in banks)

@@ -40,7 +40,7 @@ import numpy as np
 import yaml
 
 from bench._net import free_port, wait_port
-from gateway.inputs.base import Quality
+from gateway.core.points import Quality
 from gateway.outputs.statefile.format import read_state
 
 PY = sys.executable

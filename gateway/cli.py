@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .config import load_config
 from .errors import ConfigError, GatewayError
-from .runtime.gateway import install_stop_signals, run
+from .runtime.service import install_stop_signals, run
 
 __all__ = ["build_parser", "main"]
 
@@ -90,7 +90,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "run":
         return run(load_config(args.config), args.config)
     if args.command == "plc-sim":
-        from plcsim import sim as plc_sim  # the simulator ships beside the daemon, loaded on demand
+        import plcsim as plc_sim  # the simulator ships beside the daemon, loaded on demand
 
         sim_cfg = plc_sim.load_sim_config(args.config)
         if args.write_gateway_config:

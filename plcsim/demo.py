@@ -26,9 +26,12 @@ import time
 from typing import TextIO
 
 from gateway.config import parse_config
-from gateway.runtime.gateway import Gateway, install_stop_signals
+from gateway.runtime.gateway import Gateway
+from gateway.runtime.service import install_stop_signals
 
-from .sim import PlcSim, gateway_config, parse_sim_config
+from .config import parse_sim_config
+from .gateway_config import gateway_config
+from .sim import PlcSim
 
 __all__ = ["DEMO_LOOPS", "demo_configs", "run_demo"]
 

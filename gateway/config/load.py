@@ -5,135 +5,40 @@
 the section (``device plc1``, ``loop FIC101``, ``gateway``...) and the key.
 
 Protocol-specific keys (a Modbus device's ``host``, a point's ``type``...) are parsed by the
-protocol's plugin module (see :mod:`gateway.inputs`); the core keys are parsed here.
+protocol's plugin module, found by name in :mod:`gateway.config.plugins`; the core keys are
+parsed here, all with the one validator (:mod:`gateway.config.schema`).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import itertools
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, TypeGuard
+from typing import Any, TypeGuard, TypeVar
 
 import yaml
 
 from ..errors import ConfigError
-from ..inputs import protocol_names, protocol_plugin
+from ..wire.results import MAX_RESULT_UNIT_ID, RESULT_BLOCK_SIZE, overlapping_blocks
 from . import schema as s
+from .model import (
+    MIN_WINDOW_SAMPLES,
+    PROCESSES,
+    WORD_ORDERS,
+    Config,
+    DeviceConfig,
+    GatewaySettings,
+    LoopConfig,
+    MetricsSettings,
+    PointConfig,
+    ResultServerSettings,
+)
+from .plugins import input_names, input_plugin
 from .schema import MISSING, Problems, Section
 
-__all__ = [
-    "RESULT_BLOCK_SIZE",
-    "RESULT_LOOPS_PER_UNIT",
-    "Config",
-    "DeviceConfig",
-    "GatewaySettings",
-    "LoopConfig",
-    "MetricsSettings",
-    "PointConfig",
-    "ResultServerSettings",
-    "load_config",
-    "parse_config",
-]
+__all__ = ["load_config", "parse_config"]
 
-RESULT_BLOCK_SIZE = 20
-"""Registers per loop in the result server (offsets +0..+19, see docs/modbus-map.md)."""
-RESULT_LOOPS_PER_UNIT = 65536 // RESULT_BLOCK_SIZE
-"""Loops whose result blocks fit one unit id's 16-bit register space (3,276)."""
-MAX_RESULT_UNIT_ID = 247
-
-MIN_WINDOW_SAMPLES = 16
-PROCESSES = ("self-regulating", "integrating")
-WORD_ORDERS = ("big", "little")
-
-
-@dataclasses.dataclass(frozen=True)
-class GatewaySettings:
-    analysis_interval_s: float = 300.0  # process seconds between analyses of a loop
-    time_scale: float = 1.0  # process seconds per wall second (>1 only for simulation)
-    state_file: str = "state/gateway.state"
-    analysis_workers: int = 0  # worker processes; 0 = one per core less one (at least 1)
-    persist_interval_s: float = 300.0  # wall seconds between state-file writes (and at exit)
-    reconnect_max_s: float = 30.0  # wall seconds, cap of the jittered reconnect backoff
-
-
-@dataclasses.dataclass(frozen=True)
-class MetricsSettings:
-    listen: tuple[str, int] = ("127.0.0.1", 9108)
-
-
-@dataclasses.dataclass(frozen=True)
-class ResultServerSettings:
-    listen: tuple[str, int] = ("127.0.0.1", 5020)
-    unit_id: int = 1
-    word_order: str = "big"
-
-
-@dataclasses.dataclass(frozen=True)
-class DeviceConfig:
-    """One device (one connection). ``options`` is the protocol plugin's own frozen
-    dataclass (e.g. :class:`gateway.inputs.modbus.ModbusDeviceOptions`)."""
-
-    name: str
-    protocol: str
-    poll_interval_s: float  # also the sample time Ts of its loops, in process seconds
-    timeout_s: float
-    options: Any
-
-
-@dataclasses.dataclass(frozen=True)
-class PointConfig:
-    """One value of a loop: ``address`` is the protocol plugin's own point type (e.g.
-    :class:`gateway.inputs.modbus.ModbusPoint`); engineering value = raw*scale + offset."""
-
-    address: Any
-    scale: float = 1.0
-    offset: float = 0.0
-    range: tuple[float, float] | None = None  # plausible engineering values; outside -> BAD
-
-
-@dataclasses.dataclass(frozen=True)
-class LoopConfig:
-    name: str
-    device: str
-    op: PointConfig  # OP in % of valve span (after scale/offset)
-    pv: PointConfig
-    result_address: int
-    process: str = "self-regulating"
-    kp: float | None = None
-    delay_s: float = 0.0
-    window_s: float = 7200.0
-    op_range: tuple[float, float] = (0.0, 100.0)
-    # unit id of the result block; None: modbus_server.unit_id (load_config always fills
-    # it in). Not in repr: like result_address it does not change what the loop's
-    # assessment means (state.result_signature), and state files stay compatible.
-    result_unit_id: int | None = dataclasses.field(default=None, repr=False)
-
-
-@dataclasses.dataclass(frozen=True)
-class Config:
-    source: str
-    devices: tuple[DeviceConfig, ...]
-    loops: tuple[LoopConfig, ...]
-    gateway: GatewaySettings = GatewaySettings()
-    metrics: MetricsSettings = MetricsSettings()
-    modbus_server: ResultServerSettings = ResultServerSettings()
-
-    def device(self, name: str) -> DeviceConfig:
-        for dev in self.devices:
-            if dev.name == name:
-                return dev
-        raise KeyError(name)
-
-    def loops_of(self, device: str) -> tuple[LoopConfig, ...]:
-        return tuple(lp for lp in self.loops if lp.device == device)
-
-    def window_samples(self, loop: LoopConfig) -> int:
-        """Ring-buffer length of a loop: window_s / poll_interval_s samples."""
-        return max(MIN_WINDOW_SAMPLES,
-                   round(loop.window_s / self.device(loop.device).poll_interval_s))
+T = TypeVar("T")
 
 
 def load_config(path: str | os.PathLike[str]) -> Config:
@@ -160,13 +65,14 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
             problems.add("top level", None, "the file is empty")
         raise ConfigError(problems.lines)
 
-    gateway = _parse_gateway(top.sub("gateway", "gateway"))
-    metrics = _parse_metrics(top.sub("metrics", "metrics"))
-    server = _parse_server(top.sub("modbus_server", "modbus_server"))
+    gateway = _settings(top.sub("gateway", "gateway"), GatewaySettings, GATEWAY_KEYS)
+    metrics = _settings(top.sub("metrics", "metrics"), MetricsSettings, METRICS_KEYS)
+    server = _settings(top.sub("modbus_server", "modbus_server"), ResultServerSettings,
+                       SERVER_KEYS)
 
     devices: dict[str, DeviceConfig | None] = {}  # None: named but invalid
     protocols: dict[str, str] = {}  # device name -> protocol, also for invalid devices
-    raw_devices = top.req("devices", _nonempty_list)
+    raw_devices = top.req("devices", s.nonempty_list)
     for i, raw in enumerate(raw_devices if raw_devices is not MISSING else []):
         name = raw.get("name") if isinstance(raw, Mapping) else None
         where = f"device {name}" if isinstance(name, str) and name else f"devices[{i}]"
@@ -181,10 +87,10 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
         if dname is not MISSING and protocol is not MISSING:
             protocols.setdefault(dname, protocol)
         if protocol is not MISSING:
-            plugin = protocol_plugin(protocol)
+            plugin = input_plugin(protocol)
             if plugin is None:
                 sec.error("protocol", f"unknown protocol {protocol!r} "
-                          f"(known: {', '.join(protocol_names())})")
+                          f"(known: {', '.join(input_names())})")
             else:
                 options = plugin.parse_device(sec)
         sec.done()
@@ -200,7 +106,7 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
     # (loop, result unit id, result_address) of every loop that has both
     blocks: list[tuple[str, int, int]] = []
     names: set[str] = set()
-    raw_loops = top.req("loops", _nonempty_list)
+    raw_loops = top.req("loops", s.nonempty_list)
     for i, raw in enumerate(raw_loops if raw_loops is not MISSING else []):
         name = raw.get("name") if isinstance(raw, Mapping) else None
         where = f"loop {name}" if isinstance(name, str) and name else f"loops[{i}]"
@@ -233,41 +139,28 @@ def _is_int(value: Any) -> TypeGuard[int]:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _nonempty_list(value: Any) -> list[Any]:
-    if not isinstance(value, list) or not value:
-        raise TypeError("must be a non-empty list")
-    return value
+GATEWAY_KEYS: dict[str, Callable[[Any], Any]] = {
+    "analysis_interval_s": s.number(positive=True),
+    "time_scale": s.number(positive=True),
+    "state_file": s.string,
+    "analysis_workers": s.integer(0, 256),
+    "persist_interval_s": s.number(positive=True),
+    "reconnect_max_s": s.number(positive=True),
+}
+METRICS_KEYS: dict[str, Callable[[Any], Any]] = {"listen": s.listen_address}
+SERVER_KEYS: dict[str, Callable[[Any], Any]] = {
+    "listen": s.listen_address,
+    "unit_id": s.integer(0, 247),
+    "word_order": s.choice(WORD_ORDERS),
+}
 
 
-def _parse_gateway(sec: Section) -> GatewaySettings:
-    d = GatewaySettings()
-    out = GatewaySettings(
-        analysis_interval_s=sec.opt("analysis_interval_s", s.number(positive=True),
-                                    d.analysis_interval_s),
-        time_scale=sec.opt("time_scale", s.number(positive=True), d.time_scale),
-        state_file=sec.opt("state_file", s.string, d.state_file),
-        analysis_workers=sec.opt("analysis_workers", s.integer(0, 256), d.analysis_workers),
-        persist_interval_s=sec.opt("persist_interval_s", s.number(positive=True),
-                                   d.persist_interval_s),
-        reconnect_max_s=sec.opt("reconnect_max_s", s.number(positive=True), d.reconnect_max_s),
-    )
-    sec.done()
-    return out
-
-
-def _parse_metrics(sec: Section) -> MetricsSettings:
-    out = MetricsSettings(listen=sec.opt("listen", s.listen_address, MetricsSettings.listen))
-    sec.done()
-    return out
-
-
-def _parse_server(sec: Section) -> ResultServerSettings:
-    d = ResultServerSettings()
-    out = ResultServerSettings(
-        listen=sec.opt("listen", s.listen_address, d.listen),
-        unit_id=sec.opt("unit_id", s.integer(0, 247), d.unit_id),
-        word_order=sec.opt("word_order", s.choice(WORD_ORDERS), d.word_order),
-    )
+def _settings(sec: Section, cls: Callable[..., T], keys: Mapping[str, Callable[[Any], Any]]
+              ) -> T:
+    """A settings section: each key of ``keys`` read with its converter, defaulting to the
+    dataclass ``cls``'s own default."""
+    defaults = cls()
+    out = cls(**{key: sec.opt(key, conv, getattr(defaults, key)) for key, conv in keys.items()})
     sec.done()
     return out
 
@@ -283,7 +176,7 @@ def _parse_point(sec: Section, device: DeviceConfig | None,
         sec.error("scale", "must not be 0")
         scale = MISSING
     address: Any = MISSING
-    plugin = protocol_plugin(device.protocol if device is not None else protocol or "")
+    plugin = input_plugin(device.protocol if device is not None else protocol or "")
     if plugin is not None:
         address = plugin.parse_point(sec, device.options if device is not None else None)
     else:  # unknown device or protocol: the device's own error says it all
@@ -352,13 +245,11 @@ def _kp(value: Any) -> float | None:
 
 def _check_result_blocks(problems: Problems, blocks: list[tuple[str, int, int]],
                          default_unit: Any) -> None:
-    """Within each result unit id, a loop's 20-register block must not overlap another's
-    (reported once per pair of neighbours in address order); the same address on two unit
-    ids is fine."""
-    ordered = sorted(blocks, key=lambda b: (b[1], b[2]))
-    for (pname, punit, pa), (name, unit, a) in itertools.pairwise(ordered):
-        if unit == punit and a < pa + RESULT_BLOCK_SIZE:
-            n = RESULT_BLOCK_SIZE - 1
-            where = "" if unit == default_unit else f" on result unit id {unit}"
-            problems.add(f"loop {name}", "result_address",
-                         f"block {a}..{a + n} overlaps loop {pname} ({pa}..{pa + n}){where}")
+    """Within each result unit id, a loop's block must not overlap another's (reported
+    once per pair of neighbours in address order); the same address on two unit ids is
+    fine."""
+    n = RESULT_BLOCK_SIZE - 1
+    for name, unit, a, other, oa in overlapping_blocks(blocks):
+        where = "" if unit == default_unit else f" on result unit id {unit}"
+        problems.add(f"loop {name}", "result_address",
+                     f"block {a}..{a + n} overlaps loop {other} ({oa}..{oa + n}){where}")

@@ -6,7 +6,8 @@ unknown, so a misspelt key is always an error. Each problem is one line::
 
     FILE: WHERE: key 'KEY': MESSAGE          (WHERE is e.g. "loop FIC101" or "gateway")
 
-Protocol plugins (``gateway.inputs.<protocol>``) use the same reader for their own keys.
+Protocol plugins (``gateway.inputs.<protocol>``) and the simulated PLC's config use the same
+reader for their own keys: this is the one validator.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["MISSING", "Problems", "Section"]
+__all__ = ["MISSING", "Problems", "Section", "choice", "integer", "listen_address", "mapping",
+           "nonempty_list", "number", "number_pair", "string"]
 
 T = TypeVar("T")
 
@@ -65,7 +67,7 @@ class Section:
         self.prefix = prefix  # "op." for nested point mappings, so keys read "op.type"
         self.valid = isinstance(raw, Mapping)
         self.raw: Mapping[str, Any] = raw if isinstance(raw, Mapping) else {}
-        self._seen: set[str] = set()
+        self._seen: dict[str, None] = {}  # keys read, in reading order
         if raw is not None and not self.valid:
             name = prefix.rstrip(".") or None
             problems.add(where, name, f"must be a mapping, was {_type_name(raw)}")
@@ -79,19 +81,19 @@ class Section:
     def sub(self, key: str, where: str | None = None) -> Section:
         """A nested mapping (missing → empty). Its keys are reported as ``key.sub`` in this
         section's ``where``, or as plain keys under a new ``where`` if one is given."""
-        self._seen.add(key)
+        self._seen[key] = None
         if where is not None:
             return Section(self.problems, where, self.raw.get(key))
         return Section(self.problems, self.where, self.raw.get(key),
                        prefix=f"{self.prefix}{key}.")
 
     def raw_value(self, key: str) -> Any:
-        self._seen.add(key)
+        self._seen[key] = None
         return self.raw.get(key, MISSING)
 
     def req(self, key: str, conv: Callable[[Any], T]) -> T | Any:
         """A required key; returns MISSING (after recording a problem) if absent or bad."""
-        self._seen.add(key)
+        self._seen[key] = None
         if key not in self.raw:
             self.error(None, f"missing required key {self.prefix + key!r}")
             return MISSING
@@ -99,7 +101,7 @@ class Section:
 
     def opt(self, key: str, conv: Callable[[Any], T], default: Any) -> T | Any:
         """An optional key with a default (used as is, not converted)."""
-        self._seen.add(key)
+        self._seen[key] = None
         if key not in self.raw:
             return default
         return self._convert(key, self.raw[key], conv)
@@ -111,11 +113,13 @@ class Section:
             self.error(key, f"{exc}, was {_describe(value)}")
             return MISSING
 
-    def done(self) -> None:
-        """Report every key that was not read as unknown."""
+    def done(self, *, list_known: bool = False) -> None:
+        """Report every key that was not read as unknown (``list_known``: naming the keys
+        that were read, in reading order, as the ones known)."""
+        known = f" (known: {', '.join(self._seen)})" if list_known else ""
         for key in self.raw:
             if key not in self._seen:
-                self.error(None, f"unknown key {self.prefix + str(key)!r}")
+                self.error(None, f"unknown key {self.prefix + str(key)!r}{known}")
 
 
 # ---------------------------------------------------------------------------- converters
@@ -155,10 +159,10 @@ def number(*, positive: bool = False, non_negative: bool = False) -> Callable[[A
     return conv
 
 
-def choice(options: Sequence[str]) -> Callable[[Any], str]:
+def choice(options: Sequence[str], hint: str = "") -> Callable[[Any], str]:
     def conv(value: Any) -> str:
         if value not in options:
-            raise ValueError(f"must be one of {', '.join(options)}")
+            raise ValueError(f"must be one of {', '.join(options)}{hint}")
         return str(value)
 
     return conv
@@ -173,6 +177,18 @@ def listen_address(value: Any) -> tuple[str, int]:
     if not host or not port.isdigit() or not 0 <= int(port) <= 65535:
         raise ValueError("must be 'host:port' with a port in 0..65535")
     return host, int(port)
+
+
+def nonempty_list(value: Any) -> list[Any]:
+    if not isinstance(value, list) or not value:
+        raise TypeError("must be a non-empty list")
+    return value
+
+
+def mapping(value: Any) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise TypeError("must be a mapping")
+    return value
 
 
 def number_pair(value: Any) -> tuple[float, float]:

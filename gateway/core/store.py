@@ -1,12 +1,13 @@
 """The one in-memory result store: the latest :class:`stiction.Assessment` per loop.
 
-Every output (Modbus result registers, Prometheus metrics, later the state file) is a view
-of this store; nothing computes a result twice. Per loop it also keeps the latest OP/PV
-sample and whether the loop is stale (no fresh samples), as numpy arrays indexed by the
-loop's position in the config.
+Every output (Modbus result registers, Prometheus metrics, the state file) is a view of this
+store; nothing computes a result twice. Per loop it also keeps the latest OP/PV sample and
+whether the loop is stale (no fresh samples), as numpy arrays indexed by the loop's position
+in the config.
 
 Subscribers (``store.subscribe(fn)``) are called with the loop index after each change of a
-loop's assessment or stale flag, on the event loop thread.
+loop's assessment or stale flag, on the event loop thread. Readers on other threads (the
+metrics HTTP server) take a :meth:`ResultStore.snapshot`, an immutable copy.
 """
 
 from __future__ import annotations
@@ -17,20 +18,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from stiction import Assessment, Verdict
+from stiction import Assessment
 
-__all__ = ["VERDICT_CODES", "LoopResult", "ResultStore", "verdict_code"]
-
-VERDICT_CODES: dict[str, int] = {
-    "none": 0,
-    Verdict.NOT_OSCILLATING: 1,
-    Verdict.NO_STICTION: 2,
-    Verdict.UNDETERMINED: 3,
-    Verdict.STICTION: 4,
-    Verdict.BAD_DATA: 5,
-    "stale": 6,
-}
-"""Verdict codes of the result registers (docs/modbus-map.md)."""
+__all__ = ["LoopResult", "ResultStore", "StoreSnapshot", "verdict_name"]
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -86,19 +76,32 @@ class ResultStore:
         for i in changed:
             self._notify(int(i))
 
-    def verdict_code(self, i: int) -> int:
-        return verdict_code(self.results[i], bool(self.stale[i]))
+    def verdict_name(self, i: int) -> str:
+        return verdict_name(self.results[i], bool(self.stale[i]))
+
+    def snapshot(self) -> StoreSnapshot:
+        """An immutable copy of everything a reader needs (cheap: the results are shared,
+        the arrays copied)."""
+        return StoreSnapshot(self.loops, tuple(self.results), self.latest_op.copy(),
+                             self.latest_pv.copy(), self.stale.copy())
+
+
+@dataclasses.dataclass(frozen=True)
+class StoreSnapshot:
+    """The store at one moment, safe to read from another thread."""
+
+    loops: tuple[str, ...]
+    results: tuple[LoopResult | None, ...]
+    latest_op: NDArray[np.float64]
+    latest_pv: NDArray[np.float64]
+    stale: NDArray[np.bool_]
 
     def verdict_name(self, i: int) -> str:
-        if self.stale[i]:
-            return "stale"
-        res = self.results[i]
-        return "none" if res is None else str(res.assessment.verdict)
+        return verdict_name(self.results[i], bool(self.stale[i]))
 
 
-def verdict_code(result: LoopResult | None, stale: bool = False) -> int:
+def verdict_name(result: LoopResult | None, stale: bool = False) -> str:
+    """``stale``, ``none`` (no assessment yet) or the assessment's verdict."""
     if stale:
-        return VERDICT_CODES["stale"]
-    if result is None:
-        return VERDICT_CODES["none"]
-    return VERDICT_CODES[result.assessment.verdict]
+        return "stale"
+    return "none" if result is None else str(result.assessment.verdict)

@@ -11,18 +11,27 @@ start time plus the elapsed wall time multiplied by ``time_scale``.
 
 :func:`analysis_segment` turns a raw window into what the analysis gets: the trailing run of
 usable samples, short gaps filled by linear interpolation.
+
+A :class:`LoopGroup` is what the rest of the gateway passes around: one bank and, per column,
+the loop's config, the positions of its OP and PV in its device's point list and its row in
+the result store. :func:`record` appends one poll of a device to its groups.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import dataclasses
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..inputs.base import Quality
+from ..config.model import Config, LoopConfig
+from .points import Quality
+from .store import ResultStore
 
-__all__ = ["WindowBank", "analysis_segment"]
+__all__ = ["LoopGroup", "WindowBank", "analysis_segment", "load_columns", "loop_signature",
+           "record", "result_signature"]
 
 F32 = NDArray[np.float32]
 
@@ -77,6 +86,78 @@ class WindowBank:
         """The newest sample of every loop (NaN / MISSING before the first append)."""
         i = (self.head - 1) % self.size
         return self.op[i].copy(), self.pv[i].copy(), self.quality[i].copy()
+
+
+def load_columns(bank: WindowBank, t: NDArray[np.float64],
+                 columns: Mapping[int, tuple[NDArray[Any], NDArray[Any], NDArray[Any]]]
+                 ) -> None:
+    """Fill a fresh ``bank`` with chronological samples: ``t`` (rows) and per column index
+    its op/pv/quality series; series are aligned at their newest sample (shorter ones get
+    MISSING rows in front), at most ``bank.size`` newest rows are kept. Columns not given
+    stay empty (MISSING)."""
+    rows = min(len(t), bank.size)
+    if rows == 0:
+        return
+    bank.t[:] = np.nan
+    bank.t[:rows] = t[len(t) - rows:]
+    for col, (op, pv, q) in columns.items():
+        n = min(len(op), rows)
+        if n == 0:
+            continue
+        bank.op[rows - n:rows, col] = op[len(op) - n:]
+        bank.pv[rows - n:rows, col] = pv[len(pv) - n:]
+        bank.quality[rows - n:rows, col] = q[len(q) - n:]
+    bank.count = rows
+    bank.head = rows % bank.size
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class LoopGroup:
+    """Loops of one device with the same window length, sampled together: one window
+    bank and, per column, the loop's config, the positions of its OP and PV in the
+    device's point list and its row in the result store. ``ts``: the sample time."""
+
+    device: str
+    bank: WindowBank
+    configs: tuple[LoopConfig, ...]
+    op_points: NDArray[np.intp]
+    pv_points: NDArray[np.intp]
+    rows: NDArray[np.intp]
+    ts: float
+
+    @property
+    def loops(self) -> tuple[str, ...]:
+        return self.bank.loops
+
+
+def loop_signature(config: Config, loop: LoopConfig) -> str:
+    """What a loop's window depends on: equal signatures mean the stored samples are the
+    same quantity at the same sample time, so the window can be kept."""
+    dev = config.device(loop.device)
+    return repr((dev.protocol, dev.options, dev.poll_interval_s,
+                 config.window_samples(loop), loop.op, loop.pv))
+
+
+def result_signature(config: Config, loop: LoopConfig) -> str:
+    """What a loop's assessment depends on (its block address does not count)."""
+    return repr((loop_signature(config, loop),
+                 dataclasses.replace(loop, result_address=0)))
+
+
+def record(groups: Sequence[LoopGroup], t: float, values: NDArray[np.float64],
+           quality: NDArray[np.uint8], store: ResultStore) -> NDArray[np.bool_]:
+    """Append one poll of a device (engineering values and qualities, one per point) to
+    its groups, and set the store's latest OP/PV. Returns, for the groups' loops in order,
+    whether the sample was fresh (delivered by the device, good or not)."""
+    fresh = []
+    for g in groups:
+        op, pv = values[g.op_points], values[g.pv_points]
+        q = np.maximum(quality[g.op_points], quality[g.pv_points])
+        g.bank.append(t, op, pv, q)
+        store.latest_op[g.rows] = op
+        store.latest_pv[g.rows] = pv
+        fresh.append(q < Quality.NO_COMM)
+    return np.concatenate(fresh) if fresh else np.zeros(0, dtype=bool)
 
 
 def analysis_segment(op: NDArray[np.floating], pv: NDArray[np.floating],

@@ -1,40 +1,25 @@
-"""Prometheus metrics: a collector that reads the result store, plus the gateway's own.
+"""The per-loop series: a collector that reads a snapshot of the result store at scrape time.
 
-Every per-loop series is produced at scrape time from :class:`~gateway.store.ResultStore`
-(no IO, no computation), so a loop removed from the config vanishes by itself. The gateway's
-own metrics (device up, poll duration/requests/errors, analysis duration, build info) are
-ordinary client objects registered in the same, explicitly passed, registry.
+No IO and no computation in ``collect()``: the scrape (on the HTTP server's thread) takes an
+immutable :class:`~gateway.core.store.StoreSnapshot`, so a loop removed from the config
+vanishes by itself and a result written meanwhile on the event loop is never half-read.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import threading
 from collections.abc import Iterator
-from wsgiref.simple_server import WSGIServer
 
-from prometheus_client import (
-    CollectorRegistry,
-    Counter,
-    Gauge,
-    Histogram,
-    Info,
-    disable_created_metrics,
-    start_http_server,
-)
 from prometheus_client.core import GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 
-from ... import __version__
-from ...core.store import VERDICT_CODES, ResultStore
+from ...core.store import ResultStore
+from ...wire.results import VERDICT_CODES
 
-__all__ = ["GatewayMetrics", "StoreCollector", "serve_metrics"]
+__all__ = ["PREFIX", "StoreCollector"]
 
 PREFIX = "stiction"
 VERDICTS = tuple(str(v) for v in VERDICT_CODES)
-
-disable_created_metrics()  # type: ignore[no-untyped-call]  # no _created series (they confuse dashboards, and promtool)
 
 
 class StoreCollector(Collector):
@@ -44,7 +29,7 @@ class StoreCollector(Collector):
         self.store = store
 
     def collect(self) -> Iterator[Metric]:
-        st = self.store
+        st = self.store.snapshot()
 
         def fam(name: str, doc: str) -> GaugeMetricFamily:
             return GaugeMetricFamily(f"{PREFIX}_loop_{name}", doc, labels=["loop"])
@@ -84,63 +69,3 @@ class StoreCollector(Collector):
 def _add(family: GaugeMetricFamily, loop: str, value: float | None) -> None:
     if value is not None and math.isfinite(value):
         family.add_metric([loop], float(value))
-
-
-class GatewayMetrics:
-    """The gateway's own metrics, in ``registry`` (a fresh one per gateway/test)."""
-
-    def __init__(self, registry: CollectorRegistry, store: ResultStore | None = None) -> None:
-        self.registry = registry
-        self.collector: StoreCollector | None = None
-        if store is not None:
-            self.collector = StoreCollector(store)
-            registry.register(self.collector)
-        self.device_up = Gauge(f"{PREFIX}_device_up", "1 while the device answers polls.",
-                               ["device"], registry=registry)
-        self.poll_duration = Histogram(
-            f"{PREFIX}_poll_duration_seconds", "Wall time of one poll of a device.", ["device"],
-            buckets=(0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0),
-            registry=registry)
-        self.poll_requests = Counter(f"{PREFIX}_poll_requests", "Protocol requests sent.",
-                                     ["device"], registry=registry)
-        self.poll_errors = Counter(f"{PREFIX}_poll_errors", "Failed polls by kind.",
-                                   ["device", "kind"], registry=registry)
-        self.analysis_duration = Histogram(
-            f"{PREFIX}_analysis_duration_seconds", "Worker time to analyse one loop window.",
-            buckets=(0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5),
-            registry=registry)
-        self.build = Info(f"{PREFIX}_build", "Version of the gateway.", registry=registry)
-        self.build.info({"version": __version__})
-
-    def add_device(self, name: str) -> None:
-        """Create a device's series at zero so they exist before the first error."""
-        self.device_up.labels(device=name).set(0)
-        self.poll_requests.labels(device=name)
-        self.poll_duration.labels(device=name)
-        for kind in ("connect", "timeout", "exception", "auth", "protocol"):
-            self.poll_errors.labels(device=name, kind=kind)
-
-
-    def set_store(self, store: ResultStore) -> None:
-        """Serve the per-loop series from ``store`` from now on (after a reload)."""
-        if self.collector is None:
-            self.collector = StoreCollector(store)
-            self.registry.register(self.collector)
-        else:
-            self.collector.store = store
-
-    def remove_device(self, name: str) -> None:
-        """Drop a device's series (it left the config on reload)."""
-        for metric in (self.device_up, self.poll_requests, self.poll_duration):
-            with contextlib.suppress(KeyError):
-                metric.remove(name)
-        for kind in ("connect", "timeout", "exception", "auth", "protocol"):
-            with contextlib.suppress(KeyError):
-                self.poll_errors.remove(name, kind)
-
-
-def serve_metrics(registry: CollectorRegistry, host: str, port: int
-                  ) -> tuple[WSGIServer, threading.Thread]:
-    """Serve /metrics from a daemon thread; ``server.server_port`` is the bound port."""
-    server, thread = start_http_server(port, addr=host, registry=registry)
-    return server, thread

@@ -90,7 +90,7 @@ def test_plc_faults_are_contained(caplog: pytest.LogCaptureFixture) -> None:
                 partial.resize(256)  # the failing block answers again
                 await asyncio.sleep(2.0)
                 results["codes_3"] = await read_codes(gw.result_port, addrs)
-                results["tasks_alive"] = all(not t.done() for t in gw._poll_tasks.values())
+                results["tasks_alive"] = all(not t.done() for t in gw._polls.tasks.values())
                 p = {x.device.name: x for x in gw.pollers}
                 results["live_starts"] = list(p["live"].tick_starts)
                 results["live_missed"] = p["live"].missed_ticks

@@ -70,13 +70,13 @@ def test_bad_values_become_flags_and_bad_data(caplog: pytest.LogCaptureFixture) 
                      time_scale=20.0, analysis_interval_s=60.0)
         async with Gateway(cfg, registry=CollectorRegistry(), serve_http=False) as gw:
             await until(lambda: gw.scheduler.rounds >= 1)
-            bank = gw.pollers[0].slots[0].bank
+            bank = gw.pollers[0].groups[0].bank
             _t, _op, _pv, q = bank.series(np.arange(len(bank.loops)))
             out["quality"] = dict(zip(bank.loops, q, strict=True))
             out["results"] = {n: gw.store.results[i] for n, i in gw.store.index.items()}
             out["stale"] = gw.store.stale.copy()
             out["codes"] = await read_codes(gw.result_port, addrs)
-            out["alive"] = all(not t.done() for t in gw._poll_tasks.values())
+            out["alive"] = all(not t.done() for t in gw._polls.tasks.values())
         feeder.cancel()
         await plc.stop()
 

@@ -8,7 +8,7 @@ from collections.abc import Coroutine
 from typing import Any, TypeVar
 
 from gateway.config import Config, parse_config
-from plcsim.sim import SimConfig, gateway_config, parse_sim_config
+from plcsim import SimConfig, gateway_config, parse_sim_config
 
 T = TypeVar("T")
 

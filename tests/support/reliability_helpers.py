@@ -20,7 +20,7 @@ from pymodbus.client import AsyncModbusTcpClient
 
 from bench._net import wait_port
 from gateway.config import Config, parse_config
-from gateway.inputs.modbus import encode_values
+from gateway.wire.codec import encode_values
 from gateway.wire.registers import RegisterServer
 
 FAKE = "gateway_fake_analyze_rel:analyze"

@@ -17,11 +17,11 @@ from prometheus_client.parser import text_string_to_metric_families
 from pymodbus.client import AsyncModbusTcpClient
 
 from gateway.config import parse_config
-from gateway.core.store import VERDICT_CODES
-from gateway.inputs.modbus import decode_registers
 from gateway.runtime.gateway import Gateway
+from gateway.wire.codec import decode_registers
+from gateway.wire.results import VERDICT_CODES
+from plcsim import PlcSim, parse_sim_config
 from plcsim.demo import DEMO_LOOPS, demo_configs
-from plcsim.sim import PlcSim, parse_sim_config
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 

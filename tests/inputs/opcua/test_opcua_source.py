@@ -1,4 +1,5 @@
-"""OPC UA input adapter against the plc-sim's real asyncua server on 127.0.0.1."""
+"""OPC UA source against the plc-sim's real asyncua server on 127.0.0.1 (raw values: scaling
+and plausibility are core.points' job, reconnecting the poller's)."""
 
 from __future__ import annotations
 
@@ -22,8 +23,8 @@ from asyncua import ua
 from asyncua.common.callback import CallbackType
 
 from bench._net import free_port
+from gateway.core.points import PointSpec, Quality
 from gateway.errors import DeviceError
-from gateway.inputs.base import PointSpec, Quality
 from gateway.inputs.opcua import OpcUaInput
 from gateway.inputs.opcua.config import OpcUaPoint
 from plcsim.opcua import NAMESPACE_URI, OpcUaPlcServer
@@ -112,7 +113,7 @@ def test_secure_session_with_login_reads_simulated_loops(pki: Pki, policy: str,
     run(main())
 
 
-def test_scale_offset_nsu_node_ids_and_chunked_reads(pki: Pki) -> None:
+def test_raw_values_nsu_node_ids_and_chunked_reads(pki: Pki) -> None:
     port = free_port()
 
     async def main() -> None:
@@ -126,7 +127,8 @@ def test_scale_offset_nsu_node_ids_and_chunked_reads(pki: Pki) -> None:
             ]
             async with OpcUaInput(device(port, max_nodes_per_read=2), pts) as inp:
                 res = await inp.read()
-            np.testing.assert_array_equal(res.values[[0, 1, 3]], [21.0, 1.5, 2.5])
+            # raw: the point's scale 2 and offset 1 are applied later, by core.points
+            np.testing.assert_array_equal(res.values[[0, 1, 3]], [10.0, 1.5, 2.5])
             assert np.isnan(res.values[2])
             assert list(res.quality) == [Quality.GOOD, Quality.GOOD, Quality.BAD, Quality.GOOD]
             assert res.requests == 2  # 3 resolvable nodes, at most 2 per Read
@@ -201,11 +203,12 @@ def test_wrong_password_is_refused_with_a_clear_auth_error(pki: Pki) -> None:
                 await inp.connect()
             assert info.value.kind == "auth"
             assert info.value.device == "dcs1"
-            # read() does not hammer the server with logins: it waits for the backoff
+            # read() does not log in again by itself: it fails at once, without network
+            # traffic; when to try again is the poller's backoff (longer after "auth")
             t0 = time.perf_counter()
-            with pytest.raises(DeviceError, match="next attempt in") as info:
+            with pytest.raises(DeviceError, match="not connected") as info:
                 await inp.read()
-            assert info.value.kind == "auth"
+            assert info.value.kind == "connect"
             assert time.perf_counter() - t0 < 0.1
             # the same server accepts the right password: the refusal was the password
             async with OpcUaInput(device(port, client_security(pki)), points(["A"])) as ok:
@@ -276,11 +279,15 @@ def test_server_down_at_start_then_up(pki: Pki) -> None:
 
 
 async def _read_until_ok(inp: OpcUaInput, limit: float) -> Any:
+    """Read as the poller does: after a failure, close and connect again."""
     deadline = time.monotonic() + limit
     while True:
         try:
+            if not inp.connected:
+                await inp.connect()
             return await inp.read()
         except DeviceError:
+            await inp.close()
             if time.monotonic() > deadline:
                 raise
             await asyncio.sleep(0.1)
@@ -288,7 +295,7 @@ async def _read_until_ok(inp: OpcUaInput, limit: float) -> Any:
 
 def test_server_restart_mid_run_resumes_without_a_new_adapter(pki: Pki) -> None:
     """During the outage read() raises DeviceError (a gap); after the restart the same
-    adapter reads again, with the new values."""
+    source connects and reads again, with the new values."""
     port = free_port()
 
     async def main() -> dict[str, Any]:

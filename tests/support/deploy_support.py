@@ -1,4 +1,4 @@
-"""Helpers for the deployment tests (tests/test_deploy_*.py): the real tools (promtool,
+"""Helpers for the deployment tests (tests/deploy/test_deploy_*.py): the real tools (promtool,
 prometheus, mbpoll, systemd-analyze), the queries in the dashboards and rules, and a
 throwaway Prometheus server on 127.0.0.1.
 
@@ -28,7 +28,7 @@ import yaml
 
 from bench._net import free_port
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 DEPLOY = REPO / "deploy"
 DASHBOARDS = DEPLOY / "grafana" / "dashboards"
 PROM_DIR = DEPLOY / "prometheus"

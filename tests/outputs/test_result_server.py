@@ -17,9 +17,11 @@ from pymodbus.client import AsyncModbusTcpClient
 
 from gateway.config import LoopConfig, PointConfig, ResultServerSettings
 from gateway.core.store import ResultStore
-from gateway.inputs.modbus import ModbusPoint, decode_registers
-from gateway.outputs.prometheus.collector import GatewayMetrics
-from gateway.wire.registers import ResultServer, result_block
+from gateway.inputs.modbus import ModbusPoint
+from gateway.outputs.modbus_server import ResultServer
+from gateway.outputs.prometheus import GatewayMetrics, StoreCollector
+from gateway.wire.codec import decode_registers
+from gateway.wire.results import result_block, verdict_code
 from stiction import Assessment, Verdict
 
 STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
@@ -57,7 +59,7 @@ def _decode_block(regs: list[int] | np.ndarray, word_order: str = "big") -> dict
 @pytest.mark.parametrize("word_order", ["big", "little"])
 def test_result_block_layout(word_order: str) -> None:
     st = _store()
-    b = _decode_block(result_block(st.results[0], code=st.verdict_code(0),
+    b = _decode_block(result_block(st.results[0], code=verdict_code(st.results[0]),
                                    word_order=word_order), word_order)
     assert b["code"] == 4
     assert b["seq"] == 2
@@ -69,14 +71,14 @@ def test_result_block_layout(word_order: str) -> None:
     assert b["t"] == 1_700_000_300
     assert b["fill"] == pytest.approx(0.5)
     assert b["reserved"] == 0
-    b = _decode_block(result_block(st.results[1], code=st.verdict_code(1),
+    b = _decode_block(result_block(st.results[1], code=verdict_code(st.results[1]),
                                    word_order=word_order), word_order)
     assert (b["code"], b["seq"]) == (2, 1)
     assert math.isnan(b["fs"])
     assert math.isnan(b["fd"])
     assert result_block(None, code=0).tolist() == [0] * 20
     st.set_stale(np.array([0]), True)
-    assert st.verdict_code(0) == 6
+    assert verdict_code(st.results[0], bool(st.stale[0])) == 6
 
 
 @contextlib.asynccontextmanager
@@ -212,7 +214,8 @@ def test_result_server_with_unit_id_0_answers_every_unserved_id() -> None:
 
 def _registry() -> CollectorRegistry:
     registry = CollectorRegistry()
-    metrics = GatewayMetrics(registry, _store())
+    registry.register(StoreCollector(_store()))
+    metrics = GatewayMetrics(registry)
     metrics.add_device("plc1")
     metrics.device_up.labels(device="plc1").set(1)
     metrics.poll_duration.labels(device="plc1").observe(0.004)

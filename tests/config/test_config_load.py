@@ -14,10 +14,10 @@ from gateway.cli import main
 from gateway.config import load_config, parse_config
 from gateway.errors import ConfigError
 from gateway.inputs.modbus import ModbusDeviceOptions, ModbusPoint
-from plcsim.sim import assign_result_blocks, load_sim_config, parse_sim_config
-from plcsim.sim import gateway_config as sim_gateway_config
+from plcsim import assign_result_blocks, load_sim_config, parse_sim_config
+from plcsim import gateway_config as sim_gateway_config
 
-CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 
 BASE: dict[str, Any] = {
     "devices": [{
@@ -227,7 +227,8 @@ def test_other_checks() -> None:
                             "timeout_s": 1})
     assert problems(data) == [
         "gw.yaml: modbus_server: key 'word_order': must be one of big, little, was 'middle'",
-        "gw.yaml: device opc: key 'protocol': unknown protocol 'profinet' (known: modbus, opcua)",
+        "gw.yaml: device opc: key 'protocol': unknown protocol 'profinet' "
+        "(known: modbus, opcua, memory)",
         "gw.yaml: loop FIC101: key 'op_range': must be finite with hi > lo, was [100, 0]",
         "gw.yaml: loop FIC101: key 'window_s': must hold at least 16 samples of device plc1 "
         "(poll_interval_s 1)",

@@ -109,16 +109,16 @@ def test_reload_keeps_unchanged_windows_and_refuses_bad_files(
         async with Gateway(load_config(first), registry=reg, analyze=FAKE,
                            serve_http=False) as gw:
             await until(lambda: gw.scheduler.rounds >= 2)
-            bank = gw.pollers[0].slots[0].bank
+            bank = gw.pollers[0].groups[0].bank
             out["before"] = {n: bank.series([k]) for k, n in enumerate(bank.loops)}
             out["seq_before"] = {n: gw.store.results[i].seq for n, i in gw.store.index.items()}
             out["metrics_before"] = {n: _verdict(reg, n) for n in "ABCDE"}
-            adapters = [p.adapter for p in gw.pollers]
+            adapters = [p.source for p in gw.pollers]
             poller0 = gw.pollers[0]
             assert await gw.reload(second)
-            out["same_adapter"] = [p.adapter is x for p, x in zip(gw.pollers, adapters,
+            out["same_adapter"] = [p.source is x for p, x in zip(gw.pollers, adapters,
                                                                   strict=True)]
-            banks = {n: s.bank for s in gw.pollers[0].slots for n in s.bank.loops}
+            banks = {n: s.bank for s in gw.pollers[0].groups for n in s.bank.loops}
             out["after"] = {n: banks[n].series([list(banks[n].loops).index(n)])
                             for n in ("A", "C", "D")}
             out["seq_after"] = {n: (r.seq if r else None) for n, r in
@@ -268,16 +268,16 @@ def test_reload_moves_loops_between_result_unit_ids(tmp_path: Path) -> None:
             await until(lambda: gw.scheduler.rounds >= 2)
             out["seq_b"] = gw.store.results[gw.store.index["B"]].seq
             out["unit2_before"] = await read(gw.result_port, 2, 0)
-            first = gw.result_server
+            first = gw.result_server.server
             assert await gw.reload(two)
-            out["restarted"] = gw.result_server is not first
+            out["restarted"] = gw.result_server.server is not first
             out["b_on_2"] = await read(gw.result_port, 2, 0)
             out["c_on_2"] = await read(gw.result_port, 2, 20)
             out["a_on_1"] = await read(gw.result_port, 1, 0)
             out["old_b_on_1"] = await read(gw.result_port, 1, 20)
-            second = gw.result_server
+            second = gw.result_server.server
             assert await gw.reload(one)  # back: unit id 2 no longer used
-            out["rebound"] = gw.result_server is second
+            out["rebound"] = gw.result_server.server is second
             out["unit2_after"] = await read(gw.result_port, 2, 0)
             out["b_back_on_1"] = await read(gw.result_port, 1, 20)
         feeder.cancel()

@@ -41,15 +41,10 @@ from reliability_helpers import (
 from bench._net import free_port
 from gateway.config import parse_config
 from gateway.core.store import ResultStore
-from gateway.core.windows import WindowBank
+from gateway.core.windows import LoopGroup, WindowBank
 from gateway.inputs.base import Quality
-from gateway.outputs.statefile.format import (
-    BankState,
-    read_state,
-    restore_state,
-    snapshot,
-    write_state,
-)
+from gateway.outputs.statefile import read_state, restore_state
+from gateway.outputs.statefile.format import snapshot, write_state
 from gateway.runtime.gateway import Gateway
 
 
@@ -80,7 +75,7 @@ def test_windows_and_results_survive_a_restart(tmp_path: Path,
         async with Gateway(cfg, registry=CollectorRegistry(), analyze=FAKE,
                            serve_http=False, persist=True) as gw:
             await until(lambda: gw.scheduler.rounds >= 2 and gw.saves >= 2)
-            bank = gw.pollers[0].slots[0].bank
+            bank = gw.pollers[0].groups[0].bank
         # after exit: the bank as it was when the final state was written
         out["saved"] = bank.series([0, 1])
         out["seq"] = [r.seq for r in gw.store.results]
@@ -94,7 +89,7 @@ def test_windows_and_results_survive_a_restart(tmp_path: Path,
         async with Gateway(cfg2, registry=CollectorRegistry(), analyze=FAKE,
                            serve_http=False, persist=True) as gw2:
             out["codes"] = await read_codes(gw2.result_port, {"A": 0, "B": 20})
-            slots = {s.bank.loops: s.bank for s in gw2.pollers[0].slots}
+            slots = {s.bank.loops: s.bank for s in gw2.pollers[0].groups}
             bank_a = slots[("A",)]
             await until(lambda: bank_a.count > len(out["saved"][0]) + 30)
             out["restored_a"] = bank_a.series([0])
@@ -170,11 +165,12 @@ def test_sigkill_loses_at_most_one_persist_interval(tmp_path: Path) -> None:
         stop(plc)
 
 
-def _bank() -> tuple[Any, list[BankState], ResultStore]:
+def _bank() -> tuple[Any, list[LoopGroup], ResultStore]:
     raw = raw_config([device("plc", 502)], [loop("A", "plc", 0, 0)])
     cfg = parse_config(raw, "t")
     bank = WindowBank(["A"], cfg.window_samples(cfg.loops[0]))
-    return cfg, [BankState(bank, list(cfg.loops), 0.1)], ResultStore(["A"])
+    zero = np.zeros(1, dtype=np.intp)
+    return cfg, [LoopGroup("plc", bank, cfg.loops, zero, zero + 1, zero, 0.1)], ResultStore(["A"])
 
 
 def _good_state(path: Path) -> None:

@@ -37,8 +37,9 @@ from reliability_helpers import (
 
 from bench._net import free_port
 from gateway.outputs.statefile.format import read_state
-from gateway.runtime.gateway import Gateway, _watchdog
+from gateway.runtime.gateway import Gateway
 from gateway.runtime.sdnotify import Notifier
+from gateway.runtime.service import _watchdog
 
 SHUTDOWN_BOUND_S = 5.0
 WATCHDOG_USEC = 400_000  # pings every 0.2 s
@@ -166,17 +167,17 @@ def test_watchdog_pings_only_while_polls_progress(tmp_path: Path) -> None:
             dog = asyncio.create_task(_watchdog(gw, notifier, 0.1))
             await asyncio.sleep(1.0)
             release = asyncio.Event()
-            real = poller.poll_once
+            real = poller.tick
 
             async def hang() -> None:  # the poll loop stalls (not a device fault)
                 await release.wait()
                 await real()
 
-            poller.poll_once = hang  # type: ignore[method-assign]
+            poller.tick = hang  # type: ignore[method-assign]
             marks["stall"] = time.monotonic()
             await asyncio.sleep(3.0)
             release.set()
-            poller.poll_once = real  # type: ignore[method-assign]
+            poller.tick = real  # type: ignore[method-assign]
             marks["release"] = time.monotonic()
             await asyncio.sleep(1.0)
             dog.cancel()

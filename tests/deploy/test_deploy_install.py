@@ -1,7 +1,7 @@
 """docs/install.md, followed step by step: every command of its ```sh blocks (the steps that
 need no systemd and no root) runs here, in order, with /opt, /etc and /var/lib moved into a
 temporary directory. The ```console blocks (systemctl, journalctl, apt-get, a running
-service) are the parts this cannot do; tests/test_deploy_static.py verifies the unit.
+service) are the parts this cannot do; tests/deploy/test_deploy_static.py verifies the unit.
 """
 
 from __future__ import annotations

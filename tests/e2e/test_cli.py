@@ -16,13 +16,13 @@ import yaml
 
 from bench._net import free_port
 from gateway.config import load_config
+from gateway.core.points import Quality
 from gateway.core.windows import WindowBank, analysis_segment
-from gateway.inputs.base import Quality
-from plcsim.sim import load_sim_config
+from plcsim import load_sim_config
 
 G, N = Quality.GOOD, Quality.NO_COMM
 CLI = [sys.executable, "-m", "gateway.cli"]
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_ring_buffer_wraps_in_time_order() -> None:

@@ -13,13 +13,9 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.x509.oid import NameOID
 
-from gateway.inputs.opcua.config import (
-    OpcUaDeviceConfig,
-    OpcUaPoint,
-    OpcUaSecurity,
-    parse_opcua_device,
-    parse_opcua_point,
-)
+from gateway.config import Config, parse_config
+from gateway.errors import ConfigError
+from gateway.inputs.opcua.config import OpcUaPoint, OpcUaSecurity
 from gateway.wire.certs import load_certificate_file, load_private_key_file, make_certificate
 
 SRC = "gateway.yaml"
@@ -32,6 +28,7 @@ def pki(tmp_path_factory: pytest.TempPathFactory) -> Pki:
     p = make_pki(base / "pki")
     (base / "secrets").mkdir()
     shutil.copy(p.password_file, base / "secrets" / "opcua.pw")
+    (base / SRC).write_text("# relative paths are resolved against this file's directory\n")
     return p
 
 
@@ -55,6 +52,7 @@ def raw_device(**changes: Any) -> dict[str, Any]:
             "password_file": "secrets/opcua.pw",
         },
         "poll_interval_s": 1.0,
+        "timeout_s": 2.0,
     }
     for key, value in changes.items():
         if key.startswith("security."):
@@ -70,33 +68,52 @@ def raw_device(**changes: Any) -> dict[str, Any]:
     return raw
 
 
+def parse(base: Path, device: Any, op: Any = None, pv: Any = None
+          ) -> tuple[Config | None, list[str]]:
+    """The config of ``device`` and one loop reading ``op``/``pv`` from it, through the
+    gateway's loader (the file named as the source lies in ``base``), and its problems
+    with the file named ``gateway.yaml``."""
+    loop = {"name": "TIC205", "device": "dcs1",
+            "op": {"node": "ns=2;s=TIC205.OP"} if op is None else op,
+            "pv": {"node": "ns=2;s=TIC205.PV"} if pv is None else pv, "result_address": 0}
+    source = str(base / SRC)
+    try:
+        return parse_config({"devices": [device], "loops": [loop]}, source), []
+    except ConfigError as exc:
+        return None, [line.replace(source, SRC, 1) for line in exc.problems]
+
+
 def problems(pki: Pki, **changes: Any) -> list[str]:
-    cfg, found = parse_opcua_device(raw_device(**changes), source=SRC, base_dir=base_dir(pki))
+    cfg, found = parse(base_dir(pki), raw_device(**changes))
     assert (cfg is None) == bool(found)
     return found
 
 
 def test_the_issue_example_loads_with_paths_resolved(pki: Pki) -> None:
-    cfg, found = parse_opcua_device(raw_device(), source=SRC, base_dir=base_dir(pki))
+    cfg, found = parse(base_dir(pki), raw_device())
     assert found == []
+    assert cfg is not None
+    dev = cfg.devices[0]
+    assert (dev.name, dev.protocol, dev.poll_interval_s, dev.timeout_s) == ("dcs1", "opcua",
+                                                                            1.0, 2.0)
+    assert dev.options.endpoint == "opc.tcp://127.0.0.1:4840"
+    assert dev.options.max_nodes_per_read == 0
     root = base_dir(pki)
-    assert cfg == OpcUaDeviceConfig(
-        name="dcs1", endpoint="opc.tcp://127.0.0.1:4840", poll_interval_s=1.0, timeout_s=2.0,
-        security=OpcUaSecurity(
-            policy="Basic256Sha256", mode="SignAndEncrypt",
-            certificate=root / "pki/client.der", private_key=root / "pki/client.pem",
-            trust_store=root / "pki/trusted", server_certificate=root / "pki/server.der",
-            username="gateway", password_file=root / "secrets/opcua.pw"),
-    )
+    assert dev.options.security == OpcUaSecurity(
+        policy="Basic256Sha256", mode="SignAndEncrypt",
+        certificate=root / "pki/client.der", private_key=root / "pki/client.pem",
+        trust_store=root / "pki/trusted", server_certificate=root / "pki/server.der",
+        username="gateway", password_file=root / "secrets/opcua.pw")
 
 
 def test_security_is_optional_and_minimal_security_is_enough(pki: Pki) -> None:
-    raw = raw_device(security=None, timeout_s=0.5, max_nodes_per_read=100)
-    cfg, found = parse_opcua_device(raw, source=SRC, base_dir=base_dir(pki))
+    cfg, found = parse(base_dir(pki), raw_device(security=None, timeout_s=0.5,
+                                                 max_nodes_per_read=100))
     assert found == []
     assert cfg is not None
-    assert cfg.security is None
-    assert (cfg.timeout_s, cfg.max_nodes_per_read) == (0.5, 100)
+    opts = cfg.devices[0].options
+    assert opts.security is None
+    assert (cfg.devices[0].timeout_s, opts.max_nodes_per_read) == (0.5, 100)
     found = problems(pki, **{"security.server_certificate": None, "security.username": None,
                              "security.password_file": None, "security.mode": "Sign"})
     assert found == []
@@ -119,10 +136,9 @@ def test_missing_certificate_file_is_named(pki: Pki) -> None:
 
 def test_unknown_keys_are_errors(pki: Pki) -> None:
     assert problems(pki, poll_intervall_s=2.0, **{"security.pasword_file": "x"}) == [
-        "gateway.yaml: device dcs1: unknown key 'poll_intervall_s' (known: name, protocol, "
-        "endpoint, security, poll_interval_s, timeout_s, max_nodes_per_read)",
         "gateway.yaml: device dcs1: unknown key 'security.pasword_file' (known: policy, mode, "
         "certificate, private_key, server_certificate, trust_store, username, password_file)",
+        "gateway.yaml: device dcs1: unknown key 'poll_intervall_s'",
     ]
 
 
@@ -225,47 +241,40 @@ def test_pem_certificates_and_other_names_are_accepted(pki: Pki, tmp_path: Path)
     assert problems(pki, **{"security.certificate": str(tmp_path / "client.crt")}) == []
 
 
-def test_not_a_mapping_and_wrong_protocol(pki: Pki) -> None:
-    cfg, found = parse_opcua_device(["x"], source=SRC, base_dir=base_dir(pki))  # type: ignore[arg-type]
-    assert cfg is None
-    assert found == ["gateway.yaml: device (no name): must be a mapping, was list"]
-    assert problems(pki, protocol="modbus", security="yes") == [
-        "gateway.yaml: device dcs1: key 'protocol': must be 'opcua' here, was 'modbus'",
+def test_security_not_a_mapping(pki: Pki) -> None:
+    assert problems(pki, security="yes") == [
         "gateway.yaml: device dcs1: key 'security': must be a mapping (leave it out for no "
         "security)",
     ]
 
 
-def test_point_node_ids() -> None:
-    assert parse_opcua_point({"node": "ns=2;s=TIC205.OP"}, source=SRC, loop="TIC205",
-                             role="op") == (OpcUaPoint("ns=2;s=TIC205.OP"), [])
-    assert parse_opcua_point({"node": "ns=3;i=1001", "scale": 0.1, "offset": -5},
-                             source=SRC, loop="TIC205", role="pv") == (
-        OpcUaPoint("ns=3;i=1001", 0.1, -5.0), [])
-    point, found = parse_opcua_point({"node": "nsu=urn:plant;s=TIC205.PV"}, source=SRC,
-                                     loop="TIC205", role="pv")
+def test_point_node_ids(pki: Pki) -> None:
+    cfg, found = parse(base_dir(pki), raw_device(security=None),
+                       op={"node": "ns=3;i=1001", "scale": 0.1, "offset": -5},
+                       pv={"node": "nsu=urn:plant;s=TIC205.PV"})
     assert found == []
-    assert point is not None
-    assert point.node == "s=TIC205.PV;nsu=urn:plant"
+    assert cfg is not None
+    op, pv = cfg.loops[0].op, cfg.loops[0].pv
+    assert (op.address, op.scale, op.offset) == (OpcUaPoint("ns=3;i=1001"), 0.1, -5.0)
+    assert pv.address.node == "s=TIC205.PV;nsu=urn:plant"
 
 
-def test_point_problems() -> None:
-    _, found = parse_opcua_point({"node": "TIC205.OP", "scale": 0, "adress": 3}, source=SRC,
-                                 loop="TIC205", role="op")
-    assert found == [
+def test_point_problems(pki: Pki) -> None:
+    def found(op: Any = None, pv: Any = None) -> list[str]:
+        return parse(base_dir(pki), raw_device(security=None), op, pv)[1]
+
+    assert found(op={"node": "TIC205.OP", "scale": 0, "adress": 3}) == [
+        "gateway.yaml: loop TIC205: key 'op.scale': must not be 0",
         "gateway.yaml: loop TIC205: key 'op.node': is not an OPC UA node id (e.g. "
         "'ns=2;s=TIC205.OP', 'ns=3;i=1001', 'nsu=urn:plant;s=TIC205.OP'), was 'TIC205.OP'",
-        "gateway.yaml: loop TIC205: key 'op.scale': must not be 0",
-        "gateway.yaml: loop TIC205: unknown key 'op.adress' (known: node, scale, offset)",
+        "gateway.yaml: loop TIC205: unknown key 'op.adress'",
     ]
-    _, found = parse_opcua_point({"scale": 1.0}, source=SRC, loop="TIC205", role="pv")
-    assert found == ["gateway.yaml: loop TIC205: missing required key 'pv.node'"]
-    _, found = parse_opcua_point({"node": "ns=2;s="}, source=SRC, loop="TIC205", role="pv")
-    assert found == ["gateway.yaml: loop TIC205: key 'pv.node': has an empty identifier, "
-                     "was 'ns=2;s='"]
-    _, found = parse_opcua_point("ns=2;s=X", source=SRC, loop="TIC205", role="pv")
-    assert found == ["gateway.yaml: loop TIC205: key 'pv': must be a mapping like "
-                     "{node: \"ns=2;s=TIC205.PV\"}, was 'ns=2;s=X'"]
+    assert found(pv={"scale": 1.0}) == [
+        "gateway.yaml: loop TIC205: missing required key 'pv.node'"]
+    assert found(pv={"node": "ns=2;s="}) == [
+        "gateway.yaml: loop TIC205: key 'pv.node': has an empty identifier, was 'ns=2;s='"]
+    assert found(pv="ns=2;s=X") == [
+        "gateway.yaml: loop TIC205: key 'pv': must be a mapping, was a string"]
 
 
 def test_certificate_made_by_the_tool_validates(tmp_path: Path) -> None:
@@ -276,6 +285,7 @@ def test_certificate_made_by_the_tool_validates(tmp_path: Path) -> None:
                      server=True)
     raw = raw_device(**{"security.server_certificate": "pki/trusted/server.der",
                         "security.username": None, "security.password_file": None})
-    cfg, found = parse_opcua_device(raw, source=SRC, base_dir=tmp_path)
+    (tmp_path / SRC).write_text("")
+    cfg, found = parse(tmp_path, raw)
     assert found == []
     assert cfg is not None

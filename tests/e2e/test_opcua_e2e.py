@@ -14,10 +14,10 @@ import yaml
 from _opcua_support import PASSWORD, USER, Pki, make_pki, run
 
 from gateway.config import load_config
+from gateway.core.points import Quality
 from gateway.errors import ConfigError
-from gateway.inputs.base import Quality
 from gateway.runtime.gateway import Gateway
-from plcsim.sim import PlcSim, gateway_config, load_sim_config
+from plcsim import PlcSim, gateway_config, load_sim_config
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(90)]
 FAKE = "opcua_fake_analyze:analyze"
@@ -147,7 +147,7 @@ def test_opcua_server_restart_mid_run_is_a_gap_then_polling_resumes(pki: Pki,
             assert sim.opcua is not None
             gateway_yaml(sim_path, gw_path, sim.port, pki)
             async with Gateway(load_config(gw_path), analyze=FAKE, serve_http=False) as gw:
-                bank = gw.pollers[0].slots[0].bank
+                bank = gw.pollers[0].groups[0].bank
                 await asyncio.sleep(1.5)
                 await sim.opcua.stop()
                 await asyncio.sleep(1.5)  # 1.5 s at 50x: ~75 process-second polls

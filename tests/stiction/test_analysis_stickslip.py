@@ -105,7 +105,7 @@ def test_pv_still_and_op_still_is_not_stick_slip() -> None:
 
 # -- plant data regression ---------------------------------------------------------------
 
-PLANT = Path(__file__).resolve().parents[2] / "shared" / "data" / "plant-stictiongpt"
+PLANT = Path(__file__).resolve().parents[3] / "shared" / "data" / "plant-stictiongpt"
 
 
 def test_plant_data_no_false_positive_tags_and_some_stiction_found() -> None:
