@@ -15,9 +15,10 @@ for trying the outputs without a PLC. Device keys::
 
 and a point reads one column: ``op: {column: 0}``. From Python, :class:`MemorySource` also
 takes rows with :meth:`~MemorySource.feed` and scripts failures: ``down`` (every connect and
-read fails with that kind), ``fail_reads`` (read number -> kind), ``failing_blocks`` (a
+read fails with that kind: a refused or unreachable device), ``silent`` (connects, but every
+read fails with a timeout), ``fail_reads`` (read number -> kind), ``failing_blocks`` (a
 partial failure: those points NO_COMM with a DeviceError of kind ``exception``) and
-``hang_s`` (a read that takes that long: a silent device).
+``hang_s`` (every read takes that long first).
 """
 
 from __future__ import annotations
@@ -126,6 +127,7 @@ class MemorySource:
         self.clock = clock
         self.rows: list[tuple[NDArray[np.float64], NDArray[np.uint8]]] = []
         self.down: str | None = None  # a DeviceError kind: connect and read fail with it
+        self.silent = False  # connect succeeds, reads time out
         self.fail_reads: dict[int, str] = {}  # read number (1, 2, ...) -> kind
         self.failing_blocks: dict[str, Sequence[int]] = {}  # block name -> point indices
         self.hang_s = 0.0
@@ -153,10 +155,12 @@ class MemorySource:
         if self.hang_s > 0:
             await asyncio.sleep(self.hang_s)
         self.reads += 1
-        kind = self.down or self.fail_reads.get(self.reads)
-        if not self.connected or kind is not None:
+        if not self.connected:
+            raise self._fail("connect", "not connected")
+        kind = self.down or ("timeout" if self.silent else None) or self.fail_reads.get(self.reads)
+        if kind is not None:
             self.connected = False
-            raise self._fail(kind or "connect", "no answer")
+            raise self._fail(kind, "no answer")
         values, quality = self._row(self.reads)
         errors = []
         for block, points in self.failing_blocks.items():

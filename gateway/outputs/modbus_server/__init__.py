@@ -29,26 +29,25 @@ def create_sink(binding: Binding, **_: Any) -> ResultServer:
 
 
 class ResultServer:
-    """The gateway's result server. :meth:`bind` serves a new config's loops; a new
-    ``modbus_server`` section, or a unit id the running server was not built for, makes it
-    build a new :class:`RegisterServer` (pymodbus fixes its devices when built): ``server``
-    is then another object."""
+    """The gateway's result server. The images are kept from construction on; the TCP
+    server exists from :meth:`start` to :meth:`stop`. :meth:`bind` serves a new config's
+    loops; a new ``modbus_server`` section, or a unit id the running server was not built
+    for, makes it build a new :class:`RegisterServer` (pymodbus fixes its devices when
+    built): ``server`` is then another object."""
 
     def __init__(self, settings: ResultServerSettings, loops: Sequence[LoopConfig],
                  store: ResultStore) -> None:
         self.settings = settings
         self.images: dict[int, NDArray[np.uint16]] = {}
-        self.server = self._new_server(loops)
-        self.started = False
+        self.units = frozenset(self.unit_ids_of(loops)) | {0}  # what the server is built for
+        self.server: RegisterServer | None = None
         self.rebind(loops, store)
 
-    def _new_server(self, loops: Sequence[LoopConfig]) -> RegisterServer:
+    def _new_server(self) -> RegisterServer:
         host, port = self.settings.listen
-        placeholder = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
-        return RegisterServer(
-            units={u: {"holding": placeholder, "input": placeholder}
-                   for u in self.unit_ids_of(loops)},
-            host=host, port=port, capacity=65536)  # a reload may move blocks anywhere
+        return RegisterServer(units={u: {"holding": img, "input": img}
+                                     for u, img in self.images.items()},
+                              host=host, port=port, capacity=65536)  # blocks may move
 
     def unit_of(self, loop: LoopConfig) -> int:
         return self.settings.unit_id if loop.result_unit_id is None else loop.result_unit_id
@@ -59,7 +58,7 @@ class ResultServer:
 
     def serves(self, loops: Sequence[LoopConfig]) -> bool:
         """Whether :meth:`rebind` can serve ``loops`` (no unit id new to this server)."""
-        return self.unit_ids_of(loops) <= self.server.unit_ids
+        return self.unit_ids_of(loops) <= self.units
 
     @property
     def image(self) -> NDArray[np.uint16]:
@@ -68,7 +67,7 @@ class ResultServer:
 
     @property
     def port(self) -> int:
-        return self.server.port
+        return self.server.port if self.server is not None else self.settings.listen[1]
 
     def rebind(self, loops: Sequence[LoopConfig], store: ResultStore) -> None:
         """Serve ``loops`` from ``store`` from now on: fresh images, so the blocks of
@@ -76,7 +75,7 @@ class ResultServer:
         used get exception 0x0A."""
         if not self.serves(loops):
             raise ValueError(f"result unit ids {sorted(self.unit_ids_of(loops))} are not all "
-                             f"served (built for {sorted(self.server.unit_ids - {0})})")
+                             f"served (built for {sorted(self.units - {0})})")
         self.store = store
         self.addresses = np.array([lp.result_address for lp in loops], dtype=np.intp)
         units = [self.unit_of(lp) for lp in loops]
@@ -87,8 +86,9 @@ class ResultServer:
         self._image_of = [self.images[u] for u in units]  # per loop, for refresh
         for i in range(len(loops)):
             self.refresh(i)
-        self.server.units = {u: {"holding": img, "input": img}
-                             for u, img in self.images.items()}
+        if self.server is not None:
+            self.server.units = {u: {"holding": img, "input": img}
+                                 for u, img in self.images.items()}
 
         def on_change(i: int) -> None:
             if self.store is store:  # an old store (before a reload) no longer counts
@@ -105,23 +105,24 @@ class ResultServer:
 
     async def bind(self, binding: Binding) -> None:
         cfg = binding.config
-        if cfg.modbus_server != self.settings or not self.serves(cfg.loops):
-            # new settings, or a result unit id the running server has no device for
-            if self.started:
-                await self.server.stop()
-            self.settings = cfg.modbus_server
-            self.server = self._new_server(cfg.loops)
+        if cfg.modbus_server == self.settings and self.serves(cfg.loops):
             self.rebind(cfg.loops, binding.store)
-            if self.started:
-                await self.server.start()
-        else:
-            self.rebind(cfg.loops, binding.store)
+            return
+        # new settings, or a result unit id the running server has no device for
+        running = self.server is not None
+        await self.stop()
+        self.settings = cfg.modbus_server
+        self.units = frozenset(self.unit_ids_of(cfg.loops)) | {0}
+        self.rebind(cfg.loops, binding.store)
+        if running:
+            await self.start()
 
     async def start(self) -> None:
-        await self.server.start()
-        self.started = True
+        server = self._new_server()
+        await server.start()
+        self.server = server
 
     async def stop(self) -> None:
-        if self.started:
-            self.started = False
-            await self.server.stop()
+        server, self.server = self.server, None
+        if server is not None:
+            await server.stop()

@@ -111,7 +111,7 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
             # samples missed while the gateway was down: since the last sample saved and
             # from the save to now; the first new poll fills the slot after these
             missed = (float(header["saved_proc"]) - last_t + down_proc) / ref.ts - 1
-            rows = int(min(max(0.0, np.floor(missed)), ref.bank.size))
+            rows = int(min(max(0.0, np.floor(missed + 1e-6)), ref.bank.size))  # 1e-6: float noise
             nan = np.full(len(ref.configs), np.nan, dtype=np.float32)
             miss = np.full(len(ref.configs), Quality.MISSING, dtype=np.uint8)
             for r in range(rows):
