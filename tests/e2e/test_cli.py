@@ -1,5 +1,4 @@
-"""Windows (ring buffers), store stale flags, and the CLI life cycle: run + SIGTERM,
-plc-sim --write-gateway-config, a bounded demo."""
+"""The CLI life cycle: run + SIGTERM, plc-sim --write-gateway-config, a bounded demo, Ctrl-C."""
 
 from __future__ import annotations
 
@@ -11,53 +10,16 @@ import time
 import urllib.request
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 from bench._net import free_port
 from gateway.config import load_config
 from gateway.core.points import Quality
-from gateway.core.windows import WindowBank, analysis_segment
 from plcsim import load_sim_config
 
 G, N = Quality.GOOD, Quality.NO_COMM
 CLI = [sys.executable, "-m", "gateway.cli"]
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def test_ring_buffer_wraps_in_time_order() -> None:
-    bank = WindowBank(["A", "B"], 4)
-    assert bank.op.dtype == np.float32
-    assert bank.quality.dtype == np.uint8
-    for k in range(6):
-        bank.append(float(k), np.array([k, 10 + k]), np.array([-k, -10 - k]),
-                    np.array([G, N if k == 5 else G], dtype=np.uint8))
-    t, op, pv, q = bank.series([0, 1])
-    assert t.tolist() == [2.0, 3.0, 4.0, 5.0]
-    assert op.tolist() == [[2, 3, 4, 5], [12, 13, 14, 15]]
-    assert pv[1].tolist() == [-12, -13, -14, -15]
-    assert q[1].tolist() == [G, G, G, N]
-    assert bank.count == 4
-    op_l, _pv_l, q_l = bank.latest()
-    assert op_l.tolist() == [5, 15]
-    assert q_l.tolist() == [G, N]
-    t, op, _, _ = WindowBank(["A"], 8).series([0])
-    assert len(t) == 0
-    # bytes per stored sample per loop: 4 (op) + 4 (pv) + 1 (quality), plus 8 per row
-    big = WindowBank([f"L{i}" for i in range(1000)], 3600)
-    assert big.nbytes == 3600 * 1000 * 9 + 3600 * 8
-
-
-def test_analysis_segment_fills_short_gaps_and_cuts_at_long_ones() -> None:
-    op = np.arange(12, dtype=np.float32)
-    pv = op * 2
-    q = np.array([N, G, G, N, N, N, N, G, G, N, G, G], dtype=np.uint8)
-    o, p = analysis_segment(op, pv, q, max_fill=3)
-    assert o.tolist() == [7, 8, 9, 10, 11]  # after the 4-sample gap; 1-sample gap filled
-    assert p.tolist() == [14, 16, 18, 20, 22]
-    q2 = np.array([G] * 8 + [N] * 4, dtype=np.uint8)  # trailing outage: keep what came before
-    assert analysis_segment(op, pv, q2)[0].tolist() == list(range(8))
-    assert len(analysis_segment(op, pv, np.full(12, N, dtype=np.uint8))[0]) == 0
 
 
 def _wait_http(port: int, timeout: float = 20.0) -> str:

@@ -1,27 +1,20 @@
-"""Outputs: the result-register map, the read-only result server, Prometheus metrics."""
+"""The Modbus result server output: blocks per unit id, read-only, a view of the store."""
 
 from __future__ import annotations
 
 import contextlib
-import math
-import os
-import shutil
-import subprocess
 from collections.abc import AsyncIterator
 
 import numpy as np
 import pytest
 from gateway_helpers import run
-from prometheus_client import CollectorRegistry, generate_latest
 from pymodbus.client import AsyncModbusTcpClient
 
 from gateway.config import LoopConfig, PointConfig, ResultServerSettings
 from gateway.core.store import ResultStore
 from gateway.inputs.modbus import ModbusPoint
 from gateway.outputs.modbus_server import ResultServer
-from gateway.outputs.prometheus import GatewayMetrics, StoreCollector
 from gateway.wire.codec import decode_registers
-from gateway.wire.results import result_block, verdict_code
 from stiction import Assessment, Verdict
 
 STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
@@ -54,31 +47,6 @@ def _decode_block(regs: list[int] | np.ndarray, word_order: str = "big") -> dict
             "t": decode_registers(r[12:14], "uint32", word_order)[0],
             "fill": decode_registers(r[14:16], "float32", word_order)[0],
             "reserved": int(np.abs(r[16:20]).sum())}
-
-
-@pytest.mark.parametrize("word_order", ["big", "little"])
-def test_result_block_layout(word_order: str) -> None:
-    st = _store()
-    b = _decode_block(result_block(st.results[0], code=verdict_code(st.results[0]),
-                                   word_order=word_order), word_order)
-    assert b["code"] == 4
-    assert b["seq"] == 2
-    assert b["si"] == pytest.approx(0.93)
-    assert b["fd"] == pytest.approx(27.0)
-    assert b["fs"] == pytest.approx(30.0)
-    assert b["period"] == pytest.approx(228.0)
-    assert b["jump"] == pytest.approx(3.0)
-    assert b["t"] == 1_700_000_300
-    assert b["fill"] == pytest.approx(0.5)
-    assert b["reserved"] == 0
-    b = _decode_block(result_block(st.results[1], code=verdict_code(st.results[1]),
-                                   word_order=word_order), word_order)
-    assert (b["code"], b["seq"]) == (2, 1)
-    assert math.isnan(b["fs"])
-    assert math.isnan(b["fd"])
-    assert result_block(None, code=0).tolist() == [0] * 20
-    st.set_stale(np.array([0]), True)
-    assert verdict_code(st.results[0], bool(st.stale[0])) == 6
 
 
 @contextlib.asynccontextmanager
@@ -210,62 +178,3 @@ def test_result_server_with_unit_id_0_answers_every_unserved_id() -> None:
             assert _decode_block(rsp.registers)["code"] == 2
 
     run(go(), 30)
-
-
-def _registry() -> CollectorRegistry:
-    registry = CollectorRegistry()
-    registry.register(StoreCollector(_store()))
-    metrics = GatewayMetrics(registry)
-    metrics.add_device("plc1")
-    metrics.device_up.labels(device="plc1").set(1)
-    metrics.poll_duration.labels(device="plc1").observe(0.004)
-    metrics.poll_requests.labels(device="plc1").inc(4)
-    metrics.poll_errors.labels(device="plc1", kind="timeout").inc()
-    metrics.analysis_duration.observe(0.003)
-    return registry
-
-
-def test_metrics_read_the_store() -> None:
-    reg = _registry()
-
-    def v(name: str, **labels: str) -> float | None:
-        return reg.get_sample_value(name, labels)
-
-    assert v("stiction_loop_stiction_index", loop="FIC101") == pytest.approx(0.93)
-    assert v("stiction_loop_fd_ratio", loop="FIC101") == pytest.approx(0.27)
-    assert v("stiction_loop_fs_ratio", loop="FIC101") == pytest.approx(0.30)
-    assert v("stiction_loop_jump_ratio", loop="FIC101") == pytest.approx(0.03)
-    assert v("stiction_loop_oscillation_period_seconds", loop="FIC101") == 228.0
-    assert v("stiction_loop_last_assessment_timestamp_seconds", loop="FIC101") == 1_700_000_300
-    assert v("stiction_loop_window_fill_ratio", loop="FIC101") == 0.5
-    assert v("stiction_loop_op_percent", loop="FIC101") == 51.5
-    assert v("stiction_loop_pv", loop="FIC101") == pytest.approx(50.2)
-    assert v("stiction_loop_verdict", loop="FIC101", verdict="stiction") == 1.0
-    assert v("stiction_loop_verdict", loop="FIC101", verdict="no_stiction") == 0.0
-    assert v("stiction_loop_verdict", loop="TIC301", verdict="none") == 1.0
-    assert v("stiction_loop_fs_ratio", loop="FIC401") is None  # not estimated: no series
-    assert v("stiction_loop_op_percent", loop="TIC301") is None
-    assert v("stiction_device_up", device="plc1") == 1.0
-    assert v("stiction_poll_requests_total", device="plc1") == 4.0
-    assert v("stiction_poll_errors_total", device="plc1", kind="timeout") == 1.0
-    assert v("stiction_poll_errors_total", device="plc1", kind="connect") == 0.0
-    assert v("stiction_poll_duration_seconds_count", device="plc1") == 1.0
-    assert v("stiction_analysis_duration_seconds_count") == 1.0
-    assert v("stiction_build_info", version="0.1.0") == 1.0
-    text = generate_latest(reg).decode()
-    assert "_created" not in text
-
-
-def test_promtool_check_metrics() -> None:
-    promtool = shutil.which("promtool")
-    if promtool is None:
-        if os.environ.get("CI") == "true":
-            pytest.fail("promtool is missing under CI=true (.ci/run installs the prometheus "
-                        "package)")
-        pytest.skip("promtool not installed (Debian package prometheus); CI runs this")
-    text = generate_latest(_registry())
-    res = subprocess.run([promtool, "check", "metrics"], input=text, capture_output=True,
-                         timeout=30, check=False)
-    problems = (res.stdout + res.stderr).decode().strip()
-    assert res.returncode == 0, problems
-    assert problems == ""

@@ -1,71 +1,79 @@
-"""Issue 6 item 3: bad config files are refused with every problem listed (check-config,
-start-up, reload); a reload keeps unchanged loops' windows, starts added loops fresh and
-drops removed loops from the registers and the metrics. (SIGHUP itself drives
-:meth:`Gateway.reload` in the systemd subprocess test.)"""
+"""Reload (SIGHUP), in memory: the carry-over is a function (``build_runtime(new, old)``),
+checked poll by poll with a fake clock; then a running gateway reloads: the result
+registers and the metrics follow, devices keep their connection and schedule, a bad file
+or a runtime that cannot be built is refused and polling goes on. (SIGHUP itself drives
+:meth:`Gateway.reload` in the systemd subprocess test, tests/e2e/test_systemd_notify.py.)"""
 
 from __future__ import annotations
 
 import asyncio
 import logging
-import socket
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 import yaml
+from memory_harness import Harness, mconfig, mloop, wiggle
 from prometheus_client import CollectorRegistry
 from pymodbus.client import AsyncModbusTcpClient
-from reliability_helpers import (
-    FAKE,
-    ScriptedPlc,
-    device,
-    feed,
-    lateness,
-    loop,
-    raw_config,
-    until,
-)
+from reliability_helpers import FAKE, lateness, until
 
-from gateway.cli import main
-from gateway.config import load_config
-from gateway.inputs.base import Quality
+from gateway.config import load_config, parse_config
+from gateway.core.points import Quality
+from gateway.inputs.memory import memory_device
 from gateway.runtime.gateway import Gateway
 
-BAD = """\
-gateway: {analysis_intervall_s: 5}
-metrics: {listen: "127.0.0.1:0"}
-modbus_server: {listen: "127.0.0.1:0"}
-devices:
-  - {name: plc1, protocol: modbus, port: 502, unit_id: 1, poll_interval_s: 1,
-     timeout_s: 1, max_registers_per_request: 200}
-loops:
-  - {name: A, device: plc9, op: {address: 0, type: float32},
-     pv: {address: 2, type: float32, range: [5, 1]}, result_address: 0}
-  - {name: B, device: plc1, op: {address: 0, type: float32},
-     pv: {address: 2, type: float32}, result_address: 10}
-"""
-
-EXPECTED = [
-    "gateway: unknown key 'analysis_intervall_s'",
-    "device plc1: missing required key 'host'",
-    "device plc1: key 'max_registers_per_request': must be in 1..125, was 200",
-    "loop A: key 'device': unknown device 'plc9' (devices: plc1)",
-    "loop A: key 'pv.range': must be finite with hi > lo, was [5, 1]",
-    "loop B: key 'result_address': block 10..29 overlaps loop A (0..19)",
-]
+CASES = Path(__file__).resolve().parents[1] / "cases"
+BAD = (CASES / "bad-file" / "gateway.yaml").read_text()
+EXPECTED = [line.removeprefix("gateway.yaml: ")
+            for line in (CASES / "bad-file" / "expected.err").read_text().splitlines()]
 
 
-@pytest.mark.parametrize("command", ["check-config", "run"])
-def test_bad_file_is_refused_listing_every_problem(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str) -> None:
-    path = tmp_path / "bad.yaml"
-    path.write_text(BAD)
-    argv = ["check-config", str(path)] if command == "check-config" else \
-        ["run", "--config", str(path)]
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert sorted(err) == sorted(f"{path}: {line}" for line in EXPECTED)
+def _configs() -> tuple[dict[str, Any], dict[str, Any]]:
+    """First: A, B, C on plc, E on plc2. Second: B removed, C's window longer, D added;
+    plc2 and E unchanged."""
+    devs = [memory_device("plc", wiggle(400, 8), poll_interval_s=0.05, repeat=True),
+            memory_device("plc2", wiggle(400, 2), poll_interval_s=0.05, repeat=True)]
+    a, b, c = mloop("A", "plc", 0, 0), mloop("B", "plc", 2, 20), mloop("C", "plc", 4, 40)
+    e = mloop("E", "plc2", 0, 80)
+    first = mconfig(devs, [a, b, c, e], analysis_interval_s=0.5)
+    second = mconfig(devs, [a, {**c, "window_s": 20.0}, mloop("D", "plc", 6, 60), e],
+                     analysis_interval_s=0.5)
+    return first, second
+
+
+def test_build_runtime_carries_windows_results_and_connections_over() -> None:
+    first, second = _configs()
+    h1 = Harness(parse_config(first, "first"))
+
+    async def go() -> Harness:
+        await h1.tick(30)
+        h1.analyse(FAKE)
+        h1.analyse(FAKE)
+        h1.source("plc2").down = "connect"  # plc2 goes down before the reload ...
+        await h1.tick(2)
+        return Harness(parse_config(second, "second"), old=h1)
+
+    h2 = asyncio.run(go())
+    before = h1.window("A")
+    after = h2.window("A")
+    assert len(before[0]) == 32
+    for x, y in zip(before, after, strict=True):  # A: its window, sample for sample
+        np.testing.assert_array_equal(x, y)
+    assert h2.store.results[h2.store.index["A"]].seq == 2  # and its result
+    assert h2.store.results[h2.store.index["E"]].seq == 2
+    assert len(h2.window("C")[0]) == 0  # C: window changed: fresh
+    assert (h2.window("D")[3] == Quality.MISSING).all()  # D: new, in A's bank
+    assert h2.store.results[h2.store.index["C"]] is None
+    assert h2.store.results[h2.store.index["D"]] is None
+    assert "B" not in h2.store.index
+    # plc's points changed: a new source; plc2 kept its source and its state (down)
+    assert h2.poller("plc").source is not h1.poller("plc").source
+    assert h2.poller("plc2").source is h1.poller("plc2").source
+    assert h2.poller("plc2").up is False and h2.poller("plc2").link is h1.poller("plc2").link
+    assert h2.runtime.clock is h1.runtime.clock
 
 
 def _write(path: Path, data: dict[str, Any]) -> Path:
@@ -73,101 +81,64 @@ def _write(path: Path, data: dict[str, Any]) -> Path:
     return path
 
 
-def _wiggle(k: int, plc: ScriptedPlc) -> None:
-    for a in range(0, 40, 4):
-        plc.set(a, 50.0 + 10.0 * np.sin((k + a) / 5.0))
-        plc.set(a + 2, 20.0 + np.cos((k + a) / 7.0))
-
-
 def _verdict(reg: CollectorRegistry, name: str) -> float | None:
     return reg.get_sample_value("stiction_loop_verdict",
                                 {"loop": name, "verdict": "not_oscillating"})
 
 
+def _thread() -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(1)
+
+
 @pytest.mark.timeout(60)
-def test_reload_keeps_unchanged_windows_and_refuses_bad_files(
+def test_a_running_gateway_reloads_and_refuses_bad_files(
         tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level(logging.INFO, logger="gateway")
+    first, second = _configs()
     out: dict[str, Any] = {}
 
     async def go() -> None:
-        plc = await ScriptedPlc(64).start()
-        feeder = asyncio.create_task(feed(plc, 0.02, _wiggle))
-        dev = device("plc", plc.port, poll=0.05)
-        dev2 = device("plc2", plc.port, poll=0.05)  # a second connection, left unchanged
-        a, b, c = (loop("A", "plc", 0, 0), loop("B", "plc", 4, 20), loop("C", "plc", 8, 40))
-        e = loop("E", "plc2", 16, 80)
-        first = _write(tmp_path / "first.yaml",
-                       raw_config([dev, dev2], [a, b, c, e], analysis_interval_s=0.5))
-        c2 = {**c, "window_s": 20.0}
-        d = loop("D", "plc", 12, 60)
-        second = _write(tmp_path / "second.yaml",
-                        raw_config([dev, dev2], [a, c2, d, e], analysis_interval_s=0.5))
-        bad = tmp_path / "bad.yaml"
-        bad.write_text(BAD)
         reg = CollectorRegistry()
-        async with Gateway(load_config(first), registry=reg, analyze=FAKE,
-                           serve_http=False) as gw:
+        async with Gateway(load_config(_write(tmp_path / "first.yaml", first)), registry=reg,
+                           analyze=FAKE, serve_http=False, executor=_thread) as gw:
             await until(lambda: gw.scheduler.rounds >= 2)
-            bank = gw.pollers[0].groups[0].bank
-            out["before"] = {n: bank.series([k]) for k, n in enumerate(bank.loops)}
             out["seq_before"] = {n: gw.store.results[i].seq for n, i in gw.store.index.items()}
             out["metrics_before"] = {n: _verdict(reg, n) for n in "ABCDE"}
-            adapters = [p.source for p in gw.pollers]
+            sources = [p.source for p in gw.pollers]
             poller0 = gw.pollers[0]
-            assert await gw.reload(second)
-            out["same_adapter"] = [p.source is x for p, x in zip(gw.pollers, adapters,
-                                                                  strict=True)]
-            banks = {n: s.bank for s in gw.pollers[0].groups for n in s.bank.loops}
-            out["after"] = {n: banks[n].series([list(banks[n].loops).index(n)])
-                            for n in ("A", "C", "D")}
+            assert await gw.reload(_write(tmp_path / "second.yaml", second))
+            out["same_source"] = [p.source is x for p, x in zip(gw.pollers, sources,
+                                                                strict=True)]
             out["seq_after"] = {n: (r.seq if r else None) for n, r in
                                 zip(gw.store.loops, gw.store.results, strict=True)}
             out["metrics_after"] = {n: _verdict(reg, n) for n in "ABCDE"}
-            client = AsyncModbusTcpClient("127.0.0.1", port=gw.result_port, timeout=2)
-            await client.connect()
-            rsp = await client.read_holding_registers(0, count=80, device_id=1)
-            out["registers"] = list(rsp.registers)
-            client.close()
-            # a bad file on reload: refused, the running config stays, polling goes on
+            out["registers"] = gw.result_server.images[1][:80].tolist()
             polls = gw.pollers[0].polls
-            out["bad_reload"] = await gw.reload(bad)
+            (tmp_path / "bad.yaml").write_text(BAD)
+            out["bad_reload"] = await gw.reload(tmp_path / "bad.yaml")
             out["config_after_bad"] = gw.config.source
             await asyncio.sleep(0.5)
             out["polls_after_bad"] = gw.pollers[0].polls - polls
             out["starts"] = poller0.tick_starts + gw.pollers[0].tick_starts
             out["missed"] = poller0.missed_ticks + gw.pollers[0].missed_ticks
             out["reconnects"] = gw.pollers[1].reconnects
-        feeder.cancel()
-        await plc.stop()
 
     asyncio.run(asyncio.wait_for(go(), 50))
-    before, after = out["before"], out["after"]
-    # A unchanged: its window carried over sample for sample
-    n_a = len(before["A"][0])
-    assert n_a >= 20
-    np.testing.assert_array_equal(after["A"][1][0][:n_a], before["A"][1][0])
-    np.testing.assert_array_equal(after["A"][0][:n_a], before["A"][0])
-    assert out["seq_after"]["A"] == out["seq_before"]["A"]  # its result too
-    # C changed its window, D is new: both start fresh, with no result
-    # (D shares A's bank, so it has A's rows, all MISSING: nothing from before the reload)
-    assert len(after["C"][0]) <= 2
-    assert (after["D"][3][0][:-2] == Quality.MISSING).all()
+    assert out["seq_after"]["A"] == out["seq_before"]["A"]  # A's result carried over
     assert out["seq_after"]["C"] is None and out["seq_after"]["D"] is None
+    assert "B" not in out["seq_after"]
     # B vanished from the metrics and the registers
     assert out["metrics_before"] == {"A": 1.0, "B": 1.0, "C": 1.0, "D": None, "E": 1.0}
     assert out["metrics_after"]["B"] is None and out["metrics_after"]["A"] == 1.0
-    assert "B" not in out["seq_after"]
     regs = out["registers"]
     assert regs[0] == 1 and regs[1] == out["seq_before"]["A"]  # A: not_oscillating, seq
     assert regs[20:40] == [0] * 20  # B's block is empty
     assert regs[40] == 0 and regs[60] == 0  # C and D: no result yet
-    # the device kept its connection and its schedule
-    # plc's points changed: a new adapter (connection); plc2 kept its connection
-    assert out["same_adapter"] == [False, True]
+    # plc's points changed: a new source (connection); plc2 kept its connection
+    assert out["same_source"] == [False, True]
     assert out["reconnects"] == 0 and out["missed"] == 0
-    assert float(lateness(out["starts"], 0.05).max()) < 0.05
-    # the bad file
+    assert float(lateness(out["starts"], 0.05).max()) < 0.05  # the schedule went on
+    # the bad file: refused with every problem, the running config stays, polls go on
     assert out["bad_reload"] is False
     assert out["config_after_bad"].endswith("second.yaml")
     assert out["polls_after_bad"] >= 5
@@ -179,55 +150,37 @@ def test_reload_keeps_unchanged_windows_and_refuses_bad_files(
                for r in caplog.records)
 
 
-def test_no_port_is_bound_by_a_refused_start(tmp_path: Path) -> None:
-    """Start-up with a bad file stops before opening anything: the ports stay free."""
-    path = tmp_path / "bad.yaml"
-    port = _free()
-    path.write_text(BAD.replace("127.0.0.1:0\"}\nmodbus", f"127.0.0.1:{port}\"}}\nmodbus"))
-    assert main(["run", "--config", str(path)]) == 2
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", port))  # would fail if the gateway had bound it
-
-
-def _free() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 @pytest.mark.timeout(60)
 def test_reload_that_fails_while_building_keeps_polling(
         tmp_path: Path, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A config that validates but cannot be applied (here: the adapter of a new device
+    """A config that validates but cannot be applied (here: the source of a new device
     cannot be built) leaves the running config and its pollers in place."""
-    import gateway.inputs.modbus as modbus_plugin  # noqa: PLC0415
+    import gateway.inputs.memory as memory_plugin  # noqa: PLC0415
 
+    rows = wiggle(100, 4)
+    first = mconfig([memory_device("plc", rows, poll_interval_s=0.05)],
+                    [mloop("A", "plc", 0, 0)])
+    second = mconfig([memory_device("plc", rows, poll_interval_s=0.05),
+                      memory_device("new", rows, poll_interval_s=0.05)],
+                     [mloop("A", "plc", 0, 0), mloop("N", "new", 2, 20)])
     out: dict[str, Any] = {}
 
     async def go() -> None:
-        plc = await ScriptedPlc(16).start()
-        feeder = asyncio.create_task(feed(plc, 0.02, _wiggle))
-        first = raw_config([device("plc", plc.port, poll=0.05)], [loop("A", "plc", 0, 0)])
-        second = raw_config([device("plc", plc.port, poll=0.05),
-                             device("new", plc.port, poll=0.05)],
-                            [loop("A", "plc", 0, 0), loop("N", "new", 4, 20)])
         async with Gateway(load_config(_write(tmp_path / "a.yaml", first)),
-                           registry=CollectorRegistry(), analyze=FAKE,
-                           serve_http=False) as gw:
+                           registry=CollectorRegistry(), analyze=FAKE, serve_http=False,
+                           executor=_thread) as gw:
             await until(lambda: gw.pollers[0].good_polls >= 3)
 
             def broken(*_: Any, **__: Any) -> Any:
-                raise RuntimeError("adapter cannot be built")
+                raise RuntimeError("source cannot be built")
 
-            monkeypatch.setattr(modbus_plugin, "create_input", broken)
+            monkeypatch.setattr(memory_plugin, "create_input", broken)
             out["ok"] = await gw.reload(_write(tmp_path / "b.yaml", second))
             polls = gw.pollers[0].good_polls
             await asyncio.sleep(0.5)
             out["polls"] = gw.pollers[0].good_polls - polls
             out["loops"] = list(gw.store.loops)
-        feeder.cancel()
-        await plc.stop()
 
     asyncio.run(asyncio.wait_for(go(), 50))
     assert out["ok"] is False
@@ -239,6 +192,7 @@ def test_reload_that_fails_while_building_keeps_polling(
 
 @pytest.mark.timeout(60)
 def test_reload_moves_loops_between_result_unit_ids(tmp_path: Path) -> None:
+    """Input in memory; the result server read over 127.0.0.1, unit id by unit id."""
     out: dict[str, Any] = {}
 
     async def read(port: int, unit: int, address: int) -> list[int] | int:
@@ -251,20 +205,18 @@ def test_reload_moves_loops_between_result_unit_ids(tmp_path: Path) -> None:
         finally:
             client.close()
 
+    dev = memory_device("plc", wiggle(100, 6), poll_interval_s=0.05, repeat=True)
+    a, b = mloop("A", "plc", 0, 0), mloop("B", "plc", 2, 20)
+    one = _write(tmp_path / "one.yaml", mconfig([dev], [a, b], analysis_interval_s=0.5))
+    # B moves to unit id 2 (same address as A), C is new there: a unit id the running
+    # server has no device for
+    b2, c2 = {**b, "result_address": 0, "result_unit_id": 2}, \
+        {**mloop("C", "plc", 4, 20), "result_unit_id": 2}
+    two = _write(tmp_path / "two.yaml", mconfig([dev], [a, b2, c2], analysis_interval_s=0.5))
+
     async def go() -> None:
-        plc = await ScriptedPlc(64).start()
-        feeder = asyncio.create_task(feed(plc, 0.02, _wiggle))
-        dev = device("plc", plc.port, poll=0.05)
-        a, b = loop("A", "plc", 0, 0), loop("B", "plc", 4, 20)
-        one = _write(tmp_path / "one.yaml", raw_config([dev], [a, b], analysis_interval_s=0.5))
-        # B moves to unit id 2 (same address as A), C is new there: a unit id the running
-        # server has no device for
-        b2, c2 = {**b, "result_address": 0, "result_unit_id": 2}, \
-            {**loop("C", "plc", 8, 20), "result_unit_id": 2}
-        two = _write(tmp_path / "two.yaml",
-                     raw_config([dev], [a, b2, c2], analysis_interval_s=0.5))
         async with Gateway(load_config(one), registry=CollectorRegistry(), analyze=FAKE,
-                           serve_http=False) as gw:
+                           serve_http=False, executor=_thread) as gw:
             await until(lambda: gw.scheduler.rounds >= 2)
             out["seq_b"] = gw.store.results[gw.store.index["B"]].seq
             out["unit2_before"] = await read(gw.result_port, 2, 0)
@@ -280,8 +232,6 @@ def test_reload_moves_loops_between_result_unit_ids(tmp_path: Path) -> None:
             out["rebound"] = gw.result_server.server is second
             out["unit2_after"] = await read(gw.result_port, 2, 0)
             out["b_back_on_1"] = await read(gw.result_port, 1, 20)
-        feeder.cancel()
-        await plc.stop()
 
     asyncio.run(asyncio.wait_for(go(), 50))
     assert out["unit2_before"] == 0x0A

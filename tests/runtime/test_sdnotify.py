@@ -1,4 +1,4 @@
-"""systemd notify datagrams and reconnect backoff."""
+"""systemd notify datagrams."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pytest
 
-from gateway.core.ticks import Backoff
 from gateway.runtime.sdnotify import Notifier, watchdog_interval
 
 
@@ -72,28 +71,3 @@ def test_watchdog_interval(monkeypatch: pytest.MonkeyPatch) -> None:
     assert watchdog_interval() is None
     monkeypatch.delenv("WATCHDOG_USEC")
     assert watchdog_interval() is None
-
-
-def test_backoff_is_capped_jittered_and_resets() -> None:
-    b = Backoff(base=0.5, factor=2.0, cap=8.0, rng=random.Random(1))
-    ceilings = []
-    delays = []
-    for _ in range(12):
-        ceilings.append(b.ceiling())
-        delays.append(b.next_delay())
-    assert ceilings[:5] == [0.5, 1.0, 2.0, 4.0, 8.0]
-    assert max(ceilings) == 8.0
-    assert all(0 <= d <= c for d, c in zip(delays, ceilings, strict=True))
-    assert len(set(delays)) == len(delays)  # jittered, not lock-step
-    b.reset()
-    assert b.ceiling() == 0.5
-
-
-@pytest.mark.parametrize(("kwargs", "match"), [
-    ({"base": 0}, "`base` must be > 0"),
-    ({"factor": 0.5}, "`factor` must be >= 1"),
-    ({"base": 2.0, "cap": 1.0}, "`cap` must be >= base"),
-])
-def test_backoff_validates(kwargs: dict[str, float], match: str) -> None:
-    with pytest.raises(ValueError, match=match):
-        Backoff(**kwargs)

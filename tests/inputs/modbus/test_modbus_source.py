@@ -1,107 +1,61 @@
-"""Modbus input: decoding, request planning, coalescing counted at the server, errors."""
+"""Modbus source against real servers on 127.0.0.1: coalescing counted at the server, raw
+values, and each kind of failure mapped to a DeviceError (what the poller then does with
+it is tested in memory, tests/runtime/test_poller.py)."""
 
 from __future__ import annotations
 
 import asyncio
 import math
-import struct
 
 import numpy as np
 import pytest
-from gateway_helpers import gateway_for, run, sim_config
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from gateway_helpers import run
+from reliability_helpers import SilentServer
 
 from bench._net import free_port
 from gateway.core.points import PointSpec, PointTable, Quality
 from gateway.errors import DeviceError
-from gateway.inputs.modbus import ModbusDeviceOptions, ModbusInput, ModbusPoint, plan_requests
-from gateway.runtime.gateway import Gateway
-from gateway.wire.codec import TYPES, decode_registers, encode_values
+from gateway.inputs.modbus import ModbusDeviceOptions, ModbusInput, ModbusPoint
+from gateway.wire.codec import encode_values
 from gateway.wire.registers import RegisterServer
-from plcsim import PlcSim
-
-ORDERS = ["big", "little"]
-FAKE = "gateway_fake_analyze:analyze"  # no analysis runs here; keeps stiction.analyze out
 
 
-def test_decode_known_layouts() -> None:
-    # 123.456 as float32 is 0x42F6E979: ABCD big/big, CDAB little words, BADC swapped bytes
-    assert decode_registers(np.array([0x42F6, 0xE979]), "float32")[0] == pytest.approx(123.456)
-    assert decode_registers(np.array([0xE979, 0x42F6]), "float32", "little")[0] == \
-        pytest.approx(123.456)
-    assert decode_registers(np.array([0xF642, 0x79E9]), "float32", "big", "little")[0] == \
-        pytest.approx(123.456)
-    assert decode_registers(np.array([0x79E9, 0xF642]), "float32", "little", "little")[0] == \
-        pytest.approx(123.456)
-    assert decode_registers(np.array([0xFFFF]), "int16")[0] == -1
-    assert decode_registers(np.array([0xFFFF]), "uint16")[0] == 65535
-    assert decode_registers(np.array([0xFFFF, 0xFFFE]), "int32")[0] == -2
-    assert decode_registers(np.array([0x0001, 0x0000]), "uint32")[0] == 65536
-    regs = np.frombuffer(struct.pack(">d", -2.5), dtype=">u2").astype(np.uint16)
-    assert decode_registers(regs, "float64")[0] == -2.5
-
-
-@settings(max_examples=200, deadline=None, derandomize=True)
-@given(typ=st.sampled_from(sorted(TYPES)), word=st.sampled_from(ORDERS),
-       byte=st.sampled_from(ORDERS), seed=st.integers(0, 2**32 - 1))
-def test_encode_decode_round_trip(typ: str, word: str, byte: str, seed: int) -> None:
-    rng = np.random.default_rng(seed)
-    width, dtype = TYPES[typ]
-    if dtype[1] == "f":
-        values = rng.normal(0, 1e3, 8).astype(dtype).astype(np.float64)
-    else:
-        info = np.iinfo(np.dtype(dtype))
-        values = rng.integers(info.min, info.max, 8, endpoint=True).astype(np.float64)
-    regs = encode_values(values, typ, word, byte)
-    assert regs.shape == (8, width)
-    np.testing.assert_array_equal(decode_registers(regs, typ, word, byte), values)
-
-
-def test_plan_merges_tables_gaps_and_splits_at_the_limit() -> None:
-    pts = [ModbusPoint(a, "float32") for a in range(0, 400, 2)]
-    reqs, first = plan_requests(pts, 125)
-    assert [(r.address, r.count) for r in reqs] == [(0, 125), (125, 125), (250, 125), (375, 25)]
-    assert first.tolist() == list(range(0, 400, 2))
-    pts = [ModbusPoint(0, "float32"), ModbusPoint(10, "int16"), ModbusPoint(3, "uint16"),
-           ModbusPoint(20, "int16", table="input"), ModbusPoint(6, "float64")]
-    reqs, first = plan_requests(pts, 125, merge_gap=4)
-    assert [(r.table, r.address, r.count) for r in reqs] == [("holding", 0, 11),
-                                                              ("input", 20, 1)]
-    assert first.tolist() == [0, 10, 3, 11, 6]
-    reqs, _ = plan_requests(pts, 125, merge_gap=0)
-    assert [(r.address, r.count) for r in reqs] == [(0, 2), (3, 1), (6, 5), (20, 1)]
+def _float_points(loops: int) -> list[PointSpec]:
+    """OP float32 at 4k, PV at 4k + 2, for loops 0..loops-1."""
+    return [PointSpec(f"L{k:03d}", role, ModbusPoint(4 * k + 2 * j, "float32"))
+            for k in range(loops) for j, role in enumerate(("op", "pv"))]
 
 
 @pytest.mark.parametrize(("loops", "max_regs"), [(60, 125), (60, 50), (7, 125), (100, 7)])
 def test_coalescing_counted_at_the_server(loops: int, max_regs: int) -> None:
-    """N loops in one contiguous block (4 registers each): the gateway sends
-    ceil(registers / max_registers_per_request) requests per poll, counted by the server."""
+    """N loops in one contiguous block (4 registers each): the source sends
+    ceil(registers / max_registers_per_request) requests per read, counted by the server,
+    and says so in ``ReadResult.requests`` (which the poller adds to
+    stiction_poll_requests_total)."""
     expected = math.ceil(4 * loops / max_regs)
-    sim = sim_config([{"name": f"L{i:03d}", "scenario": "healthy"} for i in range(loops)],
-                     time_scale=20.0)
+    values = np.arange(2 * loops, dtype=np.float64) + 0.5
+    image = encode_values(values, "float32").reshape(-1)
 
-    async def go() -> tuple[int, int, int, float | None]:
-        async with PlcSim(sim) as plc:
-            cfg = gateway_for(sim, plc.port, device={"max_registers_per_request": max_regs},
-                              analysis_interval_s=1e6)
-            async with Gateway(cfg, analyze=FAKE) as gw:
-                await asyncio.sleep(1.0)
-                poller = gw.pollers[0]
-                before, polls_before = plc.server.requests, poller.good_polls
-                await asyncio.sleep(1.0)
-                served = plc.server.requests - before
-                polls = poller.good_polls - polls_before
-                sent = gw.registry.get_sample_value("stiction_poll_requests_total",
-                                                    {"device": "plc-sim"})
-                return served, polls, poller.good_polls, sent
+    async def go() -> tuple[int, list[int]]:
+        server = RegisterServer({"holding": image, "input": image}, host="127.0.0.1", port=0)
+        await server.start()
+        opts = ModbusDeviceOptions("127.0.0.1", server.port, 1, max_regs)
+        source = ModbusInput("plc", opts, _float_points(loops), timeout_s=1.0)
+        try:
+            await source.connect()
+            before = server.requests
+            results = [await source.read() for _ in range(10)]
+            served = server.requests - before
+        finally:
+            await source.close()
+            await server.stop()
+        for res in results:
+            np.testing.assert_array_equal(res.values, values)
+        return served, [r.requests for r in results]
 
-    served, polls, total_polls, sent = run(go())
-    assert polls >= 10  # 20 polls/s for 1 s
-    # a poll may straddle the two counter reads: allow one partial poll either side
-    assert abs(served - polls * expected) <= expected
-    assert sent is not None
-    assert sent == total_polls * expected
+    served, sent = run(go(), 30)
+    assert sent == [expected] * 10
+    assert served == 10 * expected
 
 
 def test_exception_for_one_block_is_a_gap_and_dead_device_raises() -> None:
@@ -165,3 +119,52 @@ def test_nan_and_inf_values_are_bad_quality_not_numbers() -> None:
         assert values[2] == 3.0
 
     run(go(), 30)
+
+
+def test_silent_server_times_out_and_a_server_back_on_its_port_is_read_again() -> None:
+    """A PLC that accepts TCP but never answers: DeviceError(timeout) within the timeout.
+    A PLC that goes away: DeviceError(connect or timeout); once it is back on its port,
+    closing and connecting again (as the poller does) reads it."""
+    image = encode_values([1.0, 2.0], "float32").reshape(-1)
+    points = [PointSpec("A", "op", ModbusPoint(0, "float32")),
+              PointSpec("A", "pv", ModbusPoint(2, "float32"))]
+
+    async def go() -> tuple[str, float, list[str], list[float]]:
+        async with SilentServer() as silent:
+            mute = ModbusInput("mute", ModbusDeviceOptions("127.0.0.1", silent.port, 1),
+                               points, timeout_s=0.3)
+            await mute.connect()
+            t0 = asyncio.get_running_loop().time()
+            with pytest.raises(DeviceError) as info:
+                await mute.read()
+            waited = asyncio.get_running_loop().time() - t0
+            await mute.close()
+        server = RegisterServer({"holding": image, "input": image}, host="127.0.0.1", port=0)
+        await server.start()
+        port = server.port
+        flaky = ModbusInput("flaky", ModbusDeviceOptions("127.0.0.1", port, 1), points,
+                            timeout_s=0.3)
+        await flaky.connect()
+        assert (await flaky.read()).values.tolist() == [1.0, 2.0]
+        await server.stop()
+        kinds = []
+        for _ in range(2):
+            with pytest.raises(DeviceError) as gone:
+                await flaky.read()
+            kinds.append(gone.value.kind)
+        await flaky.close()
+        back = RegisterServer({"holding": image, "input": image}, host="127.0.0.1",
+                              port=port)
+        await back.start()
+        try:
+            await flaky.connect()
+            again = (await flaky.read()).values.tolist()
+        finally:
+            await flaky.close()
+            await back.stop()
+        return info.value.kind, waited, kinds, again
+
+    kind, waited, kinds, again = run(go(), 30)
+    assert kind == "timeout" and waited < 1.5
+    assert set(kinds) <= {"connect", "timeout"}
+    assert again == [1.0, 2.0]
