@@ -51,12 +51,15 @@ REGISTERS_PER_LOOP = 4
 
 @dataclasses.dataclass(frozen=True)
 class SimLoop:
+    """One simulated loop: its scenario, PV noise and first register; ``window_s`` and
+    ``result_address`` only go into the gateway config written for it."""
+
     name: str
     scenario: Scenario
-    noise: float = 0.0
-    address: int = 0
     window_s: float | None = None
     result_address: int | None = None
+    noise: float = 0.0
+    address: int = 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,16 +105,11 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
         opcua = _parse_opcua(top.sub("opcua"), base)
         if protocol != "opcua":
             top.error("opcua", "needs 'protocol: opcua'")
-    raw_loops = top.req("loops", s.nonempty_list)
     loops: list[SimLoop] = []
     names: set[str] = set()
     next_address = 0
     used: list[tuple[int, str]] = []
-    for i, raw in enumerate(raw_loops if raw_loops is not MISSING else []):
-        name = raw.get("name") if isinstance(raw, dict) else None
-        sec = Section(problems, f"loop {name}" if isinstance(name, str) else f"loops[{i}]", raw)
-        if not sec.valid:
-            continue
+    for _i, _name, sec in s.entries(top, "loops", "loop"):
         lname = sec.req("name", s.string)
         sc_name = sec.req("scenario", s.choice(tuple(SCENARIOS)))
         noise = sec.opt("noise", s.number(non_negative=True), 0.0)
@@ -135,7 +133,8 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
             continue
         used.append((address, lname))
         next_address = address + REGISTERS_PER_LOOP
-        loops.append(SimLoop(lname, sc, noise, address, window, result_address))
+        loops.append(SimLoop(lname, sc, window_s=window, result_address=result_address,
+                             noise=noise, address=address))
     used.sort()
     for (a0, n0), (a1, n1) in itertools.pairwise(used):
         if a1 < a0 + REGISTERS_PER_LOOP:

@@ -6,25 +6,9 @@ problem; :mod:`.schema` is the one validator every section and plugin reads keys
 :mod:`.plugins` maps protocol and output names to their modules.
 """
 
+from . import model
 from .load import load_config, parse_config
-from .model import (
-    Config,
-    DeviceConfig,
-    GatewaySettings,
-    LoopConfig,
-    MetricsSettings,
-    PointConfig,
-    ResultServerSettings,
-)
+from .model import *  # noqa: F403 - the dataclasses, as listed in model.__all__
 
-__all__ = [
-    "Config",
-    "DeviceConfig",
-    "GatewaySettings",
-    "LoopConfig",
-    "MetricsSettings",
-    "PointConfig",
-    "ResultServerSettings",
-    "load_config",
-    "parse_config",
-]
+__all__ = ["load_config", "parse_config"]
+__all__ += model.__all__

@@ -72,13 +72,7 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
 
     devices: dict[str, DeviceConfig | None] = {}  # None: named but invalid
     protocols: dict[str, str] = {}  # device name -> protocol, also for invalid devices
-    raw_devices = top.req("devices", s.nonempty_list)
-    for i, raw in enumerate(raw_devices if raw_devices is not MISSING else []):
-        name = raw.get("name") if isinstance(raw, Mapping) else None
-        where = f"device {name}" if isinstance(name, str) and name else f"devices[{i}]"
-        sec = Section(problems, where, raw)
-        if not sec.valid:
-            continue
+    for i, _name, sec in s.entries(top, "devices", "device"):
         dname = sec.req("name", s.string)
         protocol = sec.req("protocol", s.string)
         poll = sec.req("poll_interval_s", s.number(positive=True))
@@ -106,13 +100,7 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
     # (loop, result unit id, result_address) of every loop that has both
     blocks: list[tuple[str, int, int]] = []
     names: set[str] = set()
-    raw_loops = top.req("loops", s.nonempty_list)
-    for i, raw in enumerate(raw_loops if raw_loops is not MISSING else []):
-        name = raw.get("name") if isinstance(raw, Mapping) else None
-        where = f"loop {name}" if isinstance(name, str) and name else f"loops[{i}]"
-        sec = Section(problems, where, raw)
-        if not sec.valid:
-            continue
+    for _i, name, sec in s.entries(top, "loops", "loop"):
         loop = _parse_loop(sec, devices, protocols, server.unit_id)
         sec.done()
         address = sec.raw.get("result_address")

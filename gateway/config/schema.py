@@ -13,11 +13,11 @@ reader for their own keys: this is the one validator.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["MISSING", "Problems", "Section", "choice", "integer", "listen_address", "mapping",
-           "nonempty_list", "number", "number_pair", "string"]
+__all__ = ["MISSING", "Problems", "Section", "choice", "entries", "integer", "listen_address",
+           "mapping", "nonempty_list", "number", "number_pair", "string"]
 
 T = TypeVar("T")
 
@@ -177,6 +177,19 @@ def listen_address(value: Any) -> tuple[str, int]:
     if not host or not port.isdigit() or not 0 <= int(port) <= 65535:
         raise ValueError("must be 'host:port' with a port in 0..65535")
     return host, int(port)
+
+
+def entries(top: Section, key: str, label: str) -> Iterator[tuple[int, Any, Section]]:
+    """``(index, name, section)`` for each mapping in the non-empty list ``key`` of ``top``,
+    its problems named ``<label> <name>`` (``<key>[i]`` while it has no name); entries that
+    are not mappings are reported and skipped."""
+    raw_list = top.req(key, nonempty_list)
+    for i, raw in enumerate(raw_list if raw_list is not MISSING else []):
+        name = raw.get("name") if isinstance(raw, Mapping) else None
+        where = f"{label} {name}" if isinstance(name, str) and name else f"{key}[{i}]"
+        sec = Section(top.problems, where, raw)
+        if sec.valid:
+            yield i, name, sec
 
 
 def nonempty_list(value: Any) -> list[Any]:

@@ -135,6 +135,7 @@ inputs = st.one_of(
 )
 
 
+@pytest.mark.timing
 @pytest.mark.timeout(180)
 def test_result_server_survives_hostile_input() -> None:
     ctx = multiprocessing.get_context("spawn")

@@ -23,7 +23,7 @@ from gateway.wire.results import VERDICT_CODES
 from plcsim import PlcSim, parse_sim_config
 from plcsim.demo import DEMO_LOOPS, demo_configs
 
-pytestmark = [pytest.mark.e2e, pytest.mark.slow]
+pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.timing]
 
 WALL_S = 45.0
 TRUE_FD = {"FIC101": 0.27, "LIC201": 0.27}  # fraction of span, the scenarios' valves

@@ -19,7 +19,7 @@ from gateway.errors import ConfigError
 from gateway.runtime.gateway import Gateway
 from plcsim import PlcSim, gateway_config, load_sim_config
 
-pytestmark = [pytest.mark.e2e, pytest.mark.timeout(90)]
+pytestmark = [pytest.mark.e2e, pytest.mark.timing, pytest.mark.timeout(90)]
 FAKE = "opcua_fake_analyze:analyze"
 
 

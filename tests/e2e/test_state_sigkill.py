@@ -26,6 +26,7 @@ from gateway.core.points import Quality
 from gateway.outputs.statefile import read_state
 
 
+@pytest.mark.timing
 @pytest.mark.timeout(90)
 def test_sigkill_loses_at_most_one_persist_interval(tmp_path: Path) -> None:
     interval, poll = 1.0, 0.1

@@ -72,6 +72,7 @@ class NotifySocket:
         self.sock.close()
 
 
+@pytest.mark.timing
 @pytest.mark.timeout(120)
 def test_notify_protocol_reload_and_clean_shutdown(tmp_path: Path) -> None:
     port, metrics_port = free_port(), free_port()

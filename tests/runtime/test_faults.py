@@ -40,6 +40,7 @@ CAP = 0.5  # gateway.reconnect_max_s
 STALE = 6
 
 
+@pytest.mark.timing
 @pytest.mark.timeout(60)
 def test_plc_faults_are_contained(caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level(logging.WARNING, logger="gateway")

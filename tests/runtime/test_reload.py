@@ -90,6 +90,7 @@ def _thread() -> ThreadPoolExecutor:
     return ThreadPoolExecutor(1)
 
 
+@pytest.mark.timing
 @pytest.mark.timeout(60)
 def test_a_running_gateway_reloads_and_refuses_bad_files(
         tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:

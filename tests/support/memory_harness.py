@@ -55,14 +55,8 @@ class Harness:
         for dev in config.devices:
             self.metrics.add_device(dev.name)
         self.results = ResultServer(config.modbus_server, config.loops, self.runtime.store)
-
-    @property
-    def config(self) -> Config:
-        return self.runtime.config
-
-    @property
-    def store(self) -> Any:
-        return self.runtime.store
+        self.config: Config = self.runtime.config
+        self.store = self.runtime.store
 
     def poller(self, device: str) -> DevicePoller:
         return next(p for p in self.runtime.pollers if p.device.name == device)

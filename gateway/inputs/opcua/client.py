@@ -58,6 +58,14 @@ class OpcUaInput:
         self._chunks: list[list[Any]] = []  # asyncua Node objects per Read call
         self._status = StatusLog(self.name, self.points, self._node_ids)
 
+    async def __aenter__(self) -> OpcUaInput:
+        """``async with OpcUaInput(...) as source``: connected inside, closed after."""
+        await self.connect()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
     @property
     def connected(self) -> bool:
         c = self._client
@@ -99,13 +107,6 @@ class OpcUaInput:
     async def close(self) -> None:
         """Close the session; never raises."""
         await self._drop()
-
-    async def __aenter__(self) -> OpcUaInput:
-        await self.connect()
-        return self
-
-    async def __aexit__(self, *exc: object) -> None:
-        await self.close()
 
     # ------------------------------------------------------------------ internals
 
