@@ -1,6 +1,6 @@
 """Points and sample quality: raw values to engineering values, and what is plausible.
 
-An input adapter only decodes: per poll it returns one *raw* value and one quality per point
+An input (a source) only decodes: per read it returns one *raw* value and one quality per point
 (numpy arrays, in the point order it was built with). :class:`PointTable` is the one place
 that turns them into engineering values (``raw * scale + offset``) and flags implausible
 ones BAD, for every protocol:

@@ -2,13 +2,14 @@
 
 Every ``analysis_interval_s`` process seconds (``/ time_scale`` wall seconds) one round
 analyses every loop: windows are copied out of the ring buffers in batches of
-``batch_size`` loops (one pickle per batch, not per loop), each batch runs
-``stiction.analyze`` in a ``ProcessPoolExecutor`` worker (spawned, never forked from the
-threaded gateway), and the results go into the :class:`~gateway.store.ResultStore`. At most
-``2 × workers`` batches are in flight, which bounds the memory a round holds. A round that
-is still running when the next is due makes that one wait (no pile-up). Workers run at a
-lower CPU priority (``nice`` +10 by default), so on a busy box the polling event loop wins a
-contested core and analysis only takes what is left.
+``batch_size`` loops (one pickle per batch, not per loop; :func:`gateway.core.jobs.batches`),
+each batch runs :func:`gateway.core.jobs.analyze_batch` in a ``ProcessPoolExecutor`` worker
+(spawned, never forked from the threaded gateway), and the results go into the
+:class:`~gateway.core.store.ResultStore`. At most ``2 × workers`` batches are in flight,
+which bounds the memory a round holds. A round that is still running when the next is due
+makes that one wait (no pile-up). Workers run at a lower CPU priority (``nice`` +10 by
+default), so on a busy box the polling event loop wins a contested core and analysis only
+takes what is left.
 """
 
 from __future__ import annotations
