@@ -8,7 +8,7 @@ import contextlib
 
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, Info
 
-from ... import __version__
+from ..._version import __version__
 from ...errors import DeviceError
 from .collector import PREFIX
 
