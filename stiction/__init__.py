@@ -7,7 +7,7 @@ Method: He, Pottmann & Qin (2007) for detection, He & Wang (2014) for quantifica
 from __future__ import annotations
 
 from ._analyze import analyze
-from ._assessment import Assessment, Verdict
+from ._assessment import Assessment, Evidence, Verdict
 from ._errors import ParameterError, StictionError
 from .valves import (
     ChoudhuryValve,
@@ -22,6 +22,7 @@ from .valves import (
 __all__ = [
     "Assessment",
     "ChoudhuryValve",
+    "Evidence",
     "HeValve",
     "KanoValve",
     "ParameterError",

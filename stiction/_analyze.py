@@ -73,7 +73,7 @@ def _scalar(name: str, value: Any, *, positive: bool = False, non_negative: bool
 def _validate(
     op: ArrayLike, pv: ArrayLike, *, ts: Any, kp: Any, delay: Any, process: Any,
     op_range: Any, k: Any,
-) -> tuple[FloatArray, FloatArray, float, float | None, float, tuple[float, float], float]:
+) -> tuple[FloatArray, FloatArray, float, float | None, float, float | None, float]:
     op_a = _series("op", op)
     pv_a = _series("pv", pv)
     if op_a.size != pv_a.size:
@@ -85,18 +85,22 @@ def _validate(
     if process not in PROCESSES:
         raise ParameterError("process", f"must be one of {', '.join(PROCESSES)}; was "
                                         f"{process!r}")
-    try:
-        lo, hi = op_range
-    except (TypeError, ValueError) as exc:
-        raise ParameterError("op_range", f"must be a pair (lo, hi), was {op_range!r}") from exc
-    lo_ = _scalar("op_range", lo)
-    hi_ = _scalar("op_range", hi)
-    if hi_ <= lo_:
-        raise ParameterError("op_range", f"must have lo < hi, was {op_range!r}")
+    span: float | None = None
+    if op_range is not None:
+        try:
+            lo, hi = op_range
+        except (TypeError, ValueError) as exc:
+            raise ParameterError("op_range", f"must be a pair (lo, hi), was {op_range!r}"
+                                 ) from exc
+        lo_ = _scalar("op_range", lo)
+        hi_ = _scalar("op_range", hi)
+        if hi_ <= lo_:
+            raise ParameterError("op_range", f"must have lo < hi, was {op_range!r}")
+        span = hi_ - lo_
     k_ = _scalar("k", k)
     if not 1.0 <= k_ <= 2.0:
         raise ParameterError("k", f"must lie in [1, 2], was {k!r}")
-    return op_a, pv_a, ts_, kp_, delay_, (lo_, hi_), k_
+    return op_a, pv_a, ts_, kp_, delay_, span, k_
 
 
 def _stick_slip_verdict(op: FloatArray, pv: FloatArray, warnings: list[str],
@@ -125,7 +129,7 @@ def analyze(
     kp: float | None = None,
     delay: float = 0.0,
     process: str = "self-regulating",
-    op_range: tuple[float, float] = (0.0, 100.0),
+    op_range: tuple[float, float] | None = None,
     k: float = 1.99,
 ) -> Assessment:
     """Decide whether one window of a loop oscillates, whether stiction causes it, and size it.
@@ -149,8 +153,10 @@ def analyze(
         ``"self-regulating"`` (detect on OP, fit exponentials to PV) or ``"integrating"``
         (detect on PV, fit ramps).
     op_range
-        OP values of 0 % and 100 % valve span: ``fd``/``fs``/``jump`` are fractions of
-        ``hi - lo``; ``fd_op``/``fs_op`` are in OP units.
+        OP values of 0 % and 100 % valve span, ``(lo, hi)``. It only turns sizes into
+        fractions of span (``fd``/``fs``/``jump`` = OP units / ``(hi - lo)``); no gate
+        assumes any OP range. Without it ``fd``/``fs``/``jump`` stay None and the sizes are
+        reported in OP units (``fd_op``/``fs_op``), as the reason says.
     k
         Overshoot factor K of He's model, in [1, 2]; 1.99 unless the valve is known.
 
@@ -177,7 +183,7 @@ def analyze_details(
     kp: float | None = None,
     delay: float = 0.0,
     process: str = "self-regulating",
-    op_range: tuple[float, float] = (0.0, 100.0),
+    op_range: tuple[float, float] | None = None,
     k: float = 1.99,
     force_quantify: bool = False,
 ) -> Details:
@@ -185,11 +191,14 @@ def analyze_details(
     quantification even when detection does not say stiction (as the paper's Table 6 does
     for every row); the verdict is unchanged and the sizes are then left out of the
     assessment but available in ``Details.quantification``."""
-    op_a, pv_a, ts_, kp_, delay_, (lo, hi), k_ = _validate(
+    op_a, pv_a, ts_, kp_, delay_, span, k_ = _validate(
         op, pv, ts=ts, kp=kp, delay=delay, process=process, op_range=op_range, k=k)
     integrating = process == "integrating"
-    q = check_quality(op_a, pv_a, (lo, hi))
+    q = check_quality(op_a, pv_a, span)
     warnings = list(q.warnings)
+    if q.not_responding is not None:
+        return Details(Assessment(Verdict.VALVE_NOT_RESPONDING, q.not_responding.reason(
+            q.op.size), warnings=tuple(warnings)), q.op, q.pv)
     if q.reason is not None:
         return Details(Assessment(Verdict.BAD_DATA, q.reason, warnings=tuple(warnings)))
     op_c, pv_c = q.op, q.pv
@@ -254,7 +263,6 @@ def analyze_details(
         return Details(Assessment(
             Verdict.STICTION, f"SI {si.si:.2f} >= {STICTION_SI}: stiction; not sized: "
             f"{quant.reason}", warnings=tuple(warnings), **base), op_c, pv_c, quant)
-    span = hi - lo
     assert quant.fd_op is not None  # set whenever reason is None
     if quant.multi_jump:
         return Details(Assessment(
@@ -270,13 +278,18 @@ def analyze_details(
             "(a load disturbance, or a creeping valve), so it is not called stiction and not "
             "sized", cycles_used=quant.cycles_used, warnings=tuple(warnings), **base),
             op_c, pv_c, quant)
-    fs_txt = "" if quant.fs_op is None else f", fs {quant.fs_op / span:.3f}"
+    scale = 1.0 if span is None else span
+    fs_txt = "" if quant.fs_op is None else f", fs {quant.fs_op / scale:.4g}"
     no_kp = "" if kp_ is not None else " (fs needs kp)"
+    unit = "of span" if span is not None else "in OP units (give op_range for fractions of span)"
+
+    def frac(x: float | None) -> float | None:
+        return None if x is None or span is None else x / span
+
     return Details(Assessment(
         Verdict.STICTION,
-        f"SI {si.si:.2f} >= {STICTION_SI}: stiction, fd {quant.fd_op / span:.3f}{fs_txt} of "
-        f"span over {quant.cycles_used} cycles{no_kp}",
-        fd=quant.fd_op / span, fs=None if quant.fs_op is None else quant.fs_op / span,
-        jump=None if quant.jump_op is None else quant.jump_op / span,
+        f"SI {si.si:.2f} >= {STICTION_SI}: stiction, fd {quant.fd_op / scale:.4g}{fs_txt} "
+        f"{unit} over {quant.cycles_used} cycles{no_kp}",
+        fd=frac(quant.fd_op), fs=frac(quant.fs_op), jump=frac(quant.jump_op),
         fd_op=quant.fd_op, fs_op=quant.fs_op, cycles_used=quant.cycles_used,
         warnings=tuple(warnings), **base), op_c, pv_c, quant)

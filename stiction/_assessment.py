@@ -11,7 +11,7 @@ import dataclasses
 import enum
 from typing import Any
 
-__all__ = ["Assessment", "Verdict"]
+__all__ = ["Assessment", "Evidence", "Verdict"]
 
 
 class Verdict(enum.StrEnum):
@@ -22,6 +22,26 @@ class Verdict(enum.StrEnum):
     UNDETERMINED = "undetermined"
     NOT_OSCILLATING = "not_oscillating"
     BAD_DATA = "bad_data"
+    VALVE_NOT_RESPONDING = "valve_not_responding"
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class Evidence:
+    """What one detection test saw in one window.
+
+    ``test`` is a short stable name (``"si_op"``, ``"bicoherence"``, ...); ``value`` the
+    test's headline statistic (None when the test could not run on this window); ``vote``
+    +1 when the test says stiction, -1 when it says not stiction and 0 when it cannot tell;
+    ``note`` one phrase a plant engineer can read ("OP half cycles fit a triangle").
+    """
+
+    test: str
+    value: float | None
+    vote: int
+    note: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"test": self.test, "value": self.value, "vote": self.vote, "note": self.note}
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -46,12 +66,15 @@ class Assessment:
     cycles_used: int = 0
     multi_jump: bool = False
     warnings: tuple[str, ...] = ()
+    confidence: float | None = None
+    evidence: tuple[Evidence, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping with exactly the field names of the dataclass."""
         out = dataclasses.asdict(self)
         out["verdict"] = str(self.verdict)
         out["warnings"] = list(self.warnings)
+        out["evidence"] = [e.to_dict() for e in self.evidence]
         return out
 
     @classmethod
@@ -64,4 +87,5 @@ class Assessment:
         kwargs = dict(data)
         kwargs["verdict"] = Verdict(kwargs["verdict"])
         kwargs["warnings"] = tuple(kwargs.get("warnings", ()))
+        kwargs["evidence"] = tuple(Evidence(**e) for e in kwargs.get("evidence", ()))
         return cls(**kwargs)

@@ -24,7 +24,7 @@ from scipy import fft
 
 from ._validate import FloatArray, dot
 
-__all__ = ["Oscillation", "acf", "detect_oscillation"]
+__all__ = ["Oscillation", "acf", "baseline", "detect_oscillation"]
 
 MAX_CROSSINGS = 11  # Thornhill uses the first ten intervals
 MIN_CROSSINGS = 4  # at least two period estimates
@@ -40,6 +40,7 @@ class Oscillation:
     period: float | None
     regularity: float
     reason: str
+    significance: float = 0.0  # the ACF lobe one period out, times sqrt(n)
 
 
 def detrend(x: FloatArray) -> FloatArray:
@@ -48,6 +49,28 @@ def detrend(x: FloatArray) -> FloatArray:
     t = np.arange(n) - (n - 1) / 2.0
     slope = dot(t, x - x.mean()) / dot(t, t)
     return np.asarray(x - x.mean() - slope * t)
+
+
+def baseline(x: FloatArray, window: int) -> FloatArray:
+    """A running median of ``x`` over about ``window`` samples, cheaply: medians of blocks of
+    ``window // 16`` samples, a running median of 17 of those, interpolated back.
+
+    Subtracted from a signal it removes set-point and load steps and slow drift but keeps
+    any oscillation of period well under ``window``: a median over a window spanning more
+    than a cycle sits in the middle of the cycle, and a median filter keeps a step's edge
+    where a moving average would smear it into a ramp (which the shape tests would read as
+    a triangle)."""
+    n = x.size
+    b = max(1, window // 16)
+    m = n // b
+    if m < 3:
+        return np.full(n, float(np.median(x)))
+    blocks = np.median(x[: m * b].reshape(m, b), axis=1)
+    k = min(17, m if m % 2 else m - 1)
+    padded = np.pad(blocks, k // 2, mode="edge")
+    med = np.median(np.lib.stride_tricks.sliding_window_view(padded, k), axis=1)
+    centres = np.arange(m) * b + (b - 1) / 2.0
+    return np.asarray(np.interp(np.arange(n), centres, med))
 
 
 def acf(x: FloatArray) -> FloatArray:
@@ -89,5 +112,6 @@ def detect_oscillation(x: FloatArray, *, min_regularity: float = 1.0) -> Oscilla
         return Oscillation(False, None, reg,
                            f"no significant oscillation: the ACF one period out is "
                            f"{height:.1f}/sqrt(n), under the {SIGNIFICANCE:g}/sqrt(n) that "
-                           "noise alone can reach")
-    return Oscillation(True, tp, reg, f"regular oscillation (regularity {min(reg, 99.0):.1f})")
+                           "noise alone can reach", height)
+    return Oscillation(True, tp, reg, f"regular oscillation (regularity {min(reg, 99.0):.1f})",
+                       height)

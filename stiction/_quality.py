@@ -15,6 +15,8 @@ import dataclasses
 
 import numpy as np
 
+from ._detect import noise_sd
+from ._responding import NotResponding, not_responding
 from ._validate import FloatArray, median
 
 __all__ = ["MIN_SAMPLES", "Cleaned", "check_quality"]
@@ -24,7 +26,8 @@ MIN_SAMPLES = 32
 MAX_MISSING_FRACTION = 0.10
 MAX_GAP_FRACTION = 0.02
 MIN_GAP_LIMIT = 5
-SATURATION_BAND = 0.005  # fraction of the OP range counted as "at a limit"
+SATURATION_BAND = 0.002  # fraction of OP's own range counted as "at its extreme"
+SATURATION_RUN = 3  # samples: a pinned OP stays at its extreme, a turning one passes it
 MAX_SATURATED_FRACTION = 0.20
 MAX_FROZEN_FRACTION = 0.50  # longest run of identical values, fraction of the window
 OP_MOVED_FRACTION = 0.05  # OP travel (of its range) during a frozen PV worth pointing out
@@ -41,6 +44,7 @@ class Cleaned:
     reason: str | None
     warnings: tuple[str, ...] = ()
     start: int = 0  # index of op[0] in the caller's window (leading gap trimmed)
+    not_responding: NotResponding | None = None  # OP travelled, PV still (see ._responding)
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -62,14 +66,22 @@ def _longest_constant_run(x: FloatArray) -> tuple[int, int]:
     return int(starts[k]), int(lengths[k]) + 1
 
 
-def _op_moved(op: FloatArray, start: int, run: int, span: float) -> str:
+def _op_moved(op: FloatArray, start: int, run: int, span: float | None) -> str:
     """The hint when PV stood still while OP travelled: a PV frozen while the controller
-    drives the valve over ``OP_MOVED_FRACTION`` of its span is not just a dead tag."""
-    travel = float(np.ptp(op[start : start + run]))
-    if travel < OP_MOVED_FRACTION * span:
-        return ""
-    return (f" while OP moved {100.0 * travel / span:.0f} % of its range: valve stuck or "
-            "not responding, line blocked, or the PV transmitter dead or at its cut-off")
+    drives the valve over ``OP_MOVED_FRACTION`` of its span (or, span unknown, over 20 of
+    its noise SDs) is not just a dead tag."""
+    seg = op[start : start + run]
+    travel = float(np.ptp(seg))
+    if span is not None:
+        if travel < OP_MOVED_FRACTION * span:
+            return ""
+        size = f"{100.0 * travel / span:.0f} % of its range"
+    else:
+        if travel <= 20.0 * noise_sd(seg):
+            return ""
+        size = f"{travel:.4g} (OP units)"
+    return (f" while OP moved {size}: valve stuck or not responding, line blocked, or the "
+            "PV transmitter dead or at its cut-off")
 
 
 def _levels(x: FloatArray) -> float:
@@ -89,15 +101,30 @@ def _levels(x: FloatArray) -> float:
     return span / q
 
 
+def _saturation(op: FloatArray) -> tuple[float, str, float] | None:
+    """Share of the window OP spends pinned at its own minimum or maximum (runs of at least
+    ``SATURATION_RUN`` samples within ``SATURATION_BAND`` of its range), which extreme holds
+    most of it, and its value. No OP range is assumed: a controller output clamped at 0 %,
+    at 4 mA or at a raw count of 16383 is pinned at its own extreme in every unit."""
+    lo, hi = float(np.min(op)), float(np.max(op))
+    band = SATURATION_BAND * (hi - lo)
+    best: tuple[float, str, float] | None = None
+    for name, mask, value in (("minimum", op <= lo + band, lo), ("maximum", op >= hi - band, hi)):
+        _, lengths = _runs(mask)
+        pinned = int(lengths[lengths >= SATURATION_RUN].sum())
+        if best is None or pinned / op.size > best[0]:
+            best = (pinned / op.size, name, value)
+    return best
+
+
 def _fill_gaps(x: FloatArray, bad: np.ndarray) -> FloatArray:
     idx = np.arange(x.size)
     return np.interp(idx, idx[~bad], x[~bad]) if bad.any() else x
 
 
-def check_quality(
-    op: FloatArray, pv: FloatArray, op_range: tuple[float, float]
-) -> Cleaned:
-    """Run every gate on ``op``, ``pv`` (equal-length 1-D float arrays)."""
+def check_quality(op: FloatArray, pv: FloatArray, span: float | None = None) -> Cleaned:
+    """Run every gate on ``op``, ``pv`` (equal-length 1-D float arrays); ``span``: OP units
+    of 100 % valve span, when known (only to size the OP travel in a reason)."""
     n = op.size
     warnings: list[str] = []
 
@@ -139,10 +166,14 @@ def check_quality(
             return bad(f"window too short: {op.size} finite samples, need at least "
                        f"{MIN_SAMPLES}")
 
+    # -- OP travelled while PV stood still, though PV moved before: not a data problem
+    nr = not_responding(op, pv, span=span)
+    if nr is not None:
+        return Cleaned(op, pv, None, tuple(warnings), start, nr)
+
     # -- flat or frozen
-    span = op_range[1] - op_range[0]
     for name, x in (("OP", op), ("PV", pv)):
-        if float(np.ptp(x)) <= 1e-9 * max(1.0, float(np.max(np.abs(x)))):
+        if float(np.ptp(x)) <= 1e-12 * float(np.max(np.abs(x))):
             if name == "PV" and (hint := _op_moved(op, 0, op.size, span)):
                 return bad(f"PV is constant{hint}")
             return bad(f"{name} is constant (flat signal: loop in manual or tag frozen?)")
@@ -152,16 +183,13 @@ def check_quality(
             return bad(f"{name} frozen: {run} consecutive identical samples "
                        f"({run / x.size:.0%} of the window){hint}")
 
-    # -- saturated OP
-    lo, hi = op_range
-    band = SATURATION_BAND * (hi - lo)
-    at_limit = (op <= lo + band) | (op >= hi - band)
-    frac = float(at_limit.mean())
-    if frac > MAX_SATURATED_FRACTION:
-        return bad(f"OP saturated: {frac:.0%} of samples at the OP range limits "
-                   f"{lo:g}/{hi:g}")
-    if frac > 0.02:
-        warnings.append(f"OP at its range limits for {frac:.0%} of the window")
+    # -- saturated OP: pinned flat at its own minimum or maximum (no unit assumed)
+    sat = _saturation(op)
+    if sat is not None and sat[0] > MAX_SATURATED_FRACTION:
+        return bad(f"OP saturated: pinned at its {sat[1]} ({sat[2]:.6g}) for {sat[0]:.0%} of "
+                   "the window")
+    if sat is not None and sat[0] > 0.02:
+        warnings.append(f"OP pinned at its {sat[1]} for {sat[0]:.0%} of the window")
 
     # -- quantised PV
     levels = _levels(pv)

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import json
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -144,7 +146,8 @@ def _add_analyze(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
     p.add_argument("--process", choices=("self-regulating", "integrating"),
                    default="self-regulating")
     p.add_argument("--op-range", dest="op_range", nargs=2, type=float, metavar=("LO", "HI"),
-                   default=(0.0, 100.0), help="OP at 0 %% and 100 %% valve span (default 0 100)")
+                   default=None, help="OP at 0 %% and 100 %% valve span, to report sizes as "
+                   "fractions of span (default: sizes in OP units; no OP range is assumed)")
     p.add_argument("--json", action="store_true", help="print the assessment as one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to FILE.png")
     p.set_defaults(handler=_cmd_analyze)
@@ -153,7 +156,7 @@ def _add_analyze(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
 def _read_columns(path: Path, names: Sequence[str]) -> dict[str, np.ndarray]:
     """Numeric columns ``names`` of a CSV file; empty and 'nan' cells become NaN."""
     try:
-        with path.open(newline="") as fh:
+        with path.open(newline="", encoding="utf-8-sig") as fh:  # a byte-order mark is common
             rows = list(csv.reader(fh))
     except FileNotFoundError:
         raise UsageError(f"{path}: no such file") from None
@@ -191,38 +194,73 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     op, pv = cols[args.op], cols[args.pv]
     if op.size < 2:
         raise UsageError(f"{args.file}: {op.size} samples, need at least 2")
+    notes: list[str] = []
     if time_col:
-        t = cols[time_col]
-        if not np.all(np.isfinite(t)):
-            raise UsageError(f"{args.file}: column {time_col!r} has missing times")
-        bad = np.flatnonzero(np.diff(t) <= 0)
-        if bad.size:
-            raise UsageError(f"{args.file}: time not increasing at line {int(bad[0]) + 3} "
-                             f"({t[bad[0]]:g} -> {t[bad[0] + 1]:g})")
-        ts = float(np.median(np.diff(t)))
+        ts, op, pv, notes = _on_grid(args.file, time_col, cols[time_col], op, pv)
     else:
         ts = args.ts
+    op_range = None if args.op_range is None else tuple(args.op_range)
     d = analyze_details(op, pv, ts=ts, kp=args.kp, delay=args.delay, process=args.process,
-                        op_range=tuple(args.op_range))
-    a = d.assessment
+                        op_range=op_range)
+    a = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
     if args.json:
         print(json.dumps(a.to_dict()))
     else:
         print(f"verdict: {a.verdict}")
         print(f"reason:  {a.reason}")
         for key, val in a.to_dict().items():
-            if key not in {"verdict", "reason", "warnings"} and val is not None:
+            if key not in {"verdict", "reason", "warnings", "evidence"} and val is not None:
                 print(f"  {key}: {val:.4g}" if isinstance(val, float) else f"  {key}: {val}")
+        if a.evidence:
+            print("  evidence (test, value, vote, what it saw):")
+        for e in a.evidence:
+            value = "-" if e.value is None else f"{e.value:.3g}"
+            vote = {1: "stiction", -1: "not stiction"}.get(e.vote, "cannot tell")
+            print(f"    {e.test:<14} {value:>8}  {vote:<12}  {e.note}")
         for w in a.warnings:
             print(f"  warning: {w}")
     if args.plot is not None:
-        _plot_analysis(args.plot, d, ts, tuple(args.op_range))
+        _plot_analysis(args.plot, d, ts, op_range)
         if not args.json:
             print(f"wrote {args.plot}")
     return 0
 
 
-def _plot_analysis(path: Path, d: Details, ts: float, op_range: tuple[float, float]) -> None:
+def _on_grid(path: Path, name: str, t: np.ndarray, op: np.ndarray, pv: np.ndarray
+             ) -> tuple[float, np.ndarray, np.ndarray, list[str]]:
+    """Put the rows on a regular grid of the median sample time: repeated time stamps keep
+    their last row, missing rows become gaps (NaN), as a historian export needs."""
+    if not np.all(np.isfinite(t)):
+        line = int(np.flatnonzero(~np.isfinite(t))[0]) + 2
+        raise UsageError(f"{path}: column {name!r} has a missing time at line {line}")
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        raise UsageError(f"{path}: time goes backwards at line {int(back[0]) + 3} "
+                         f"({t[back[0]]:g} -> {t[back[0] + 1]:g})")
+    steps = np.diff(t)
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        raise UsageError(f"{path}: column {name!r} holds one time only; give --ts S")
+    ts = float(np.median(steps))
+    k = np.round((t - t[0]) / ts).astype(np.int64)
+    notes = []
+    if k[-1] + 1 > 50 * t.size:
+        raise UsageError(f"{path}: time stamps too irregular to put on a grid of {ts:g} s")
+    grid_op = np.full(int(k[-1]) + 1, np.nan)
+    grid_pv = grid_op.copy()
+    grid_op[k], grid_pv[k] = op, pv  # a repeated index keeps the last row
+    repeated = t.size - np.unique(k).size
+    missing = grid_op.size - np.unique(k).size
+    if repeated:
+        notes.append(f"{repeated} rows repeat a time stamp (on a {ts:g} s grid): the last "
+                     "of each kept")
+    if missing:
+        notes.append(f"{missing} samples missing from the {ts:g} s time grid: treated as gaps")
+    return ts, grid_op, grid_pv, notes
+
+
+def _plot_analysis(path: Path, d: Details, ts: float,
+                   op_range: tuple[float, float] | None) -> None:
     plt = _pyplot()
     a = d.assessment
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
@@ -244,7 +282,7 @@ def _plot_analysis(path: Path, d: Details, ts: float, op_range: tuple[float, flo
             ax1.plot(q.jump_times * ts, np.interp(q.jump_times, np.arange(op.size), op),
                      "kv", label="valve jumps")
         if q.fs_op is not None and q.fd_op is not None and q.fs_op >= q.fd_op:
-            lo, hi = op_range
+            lo, hi = (0.0, 100.0) if op_range is None else op_range
             span = hi - lo
             # scaled by 0.9 as the paper does (section 4.2) so that cycle-to-cycle
             # variability does not leave the rebuilt valve stuck
@@ -334,6 +372,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     handler: Handler = args.handler
     try:
         return handler(args)
+    except BrokenPipeError:  # `stiction analyze ... | head`: the reader left, not an error
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so the interpreter's final flush is quiet
+        return 1
     except ParameterError as exc:
         parser.exit(2, f"stiction: error: {_param_option(exc.name)}: {exc}\n")
     except (UsageError, StictionError) as exc:

@@ -63,6 +63,7 @@ def reproduce(
         res = cache[key]
         sc = res.scenario
         d = analyze_details(res.op, res.pv, ts=sc.ts, kp=row.kp, delay=row.delay,
+                            op_range=(0.0, 100.0),
                             process="integrating" if sc.integrating else "self-regulating",
                             force_quantify=True)
         q = d.quantification

@@ -151,10 +151,15 @@ class LoopBank:
         """Time of the next sample, s."""
         return self.k * self.ts
 
-    def step(self, sp: ArrayLike | None = None) -> StepOutput:
-        """Advance every loop one sample; ``sp`` (PV units) replaces the setpoints if given."""
+    def step(self, sp: ArrayLike | None = None, load: ArrayLike | None = None) -> StepOutput:
+        """Advance every loop one sample; ``sp`` (PV units) replaces the setpoints if given;
+        ``load`` (fraction of span, per loop) is added at the process input for this sample,
+        on top of the sinusoidal and random loads of :class:`LoopParams` (for load shapes
+        those do not cover: random walks, steps, square waves, another loop's output)."""
         if sp is not None:
             self.sp = np.broadcast_to(np.asarray(sp, dtype=np.float64), (self.n,)).copy()
+        extra = None if load is None else np.broadcast_to(
+            np.asarray(load, dtype=np.float64), (self.n,))
         t = self.k * self.ts
         noise = self._rng.standard_normal(self.n) * self.noise_sd
         if np.any(self.load_sd > 0):
@@ -180,6 +185,8 @@ class LoopBank:
             0.0,
         )
         self._ptr = (self._ptr + 1) % self._hlen
+        if extra is not None:
+            load = load + extra
         self._hist[:, self._ptr] = vp - self.x0 + load + self._load
         u_d = self._hist[self._rows, (self._ptr - self._d) % self._hlen]
         u_d1 = self._hist[self._rows, (self._ptr - self._d - 1) % self._hlen]

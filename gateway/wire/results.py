@@ -52,6 +52,7 @@ VERDICT_CODES: dict[str, int] = {
     Verdict.STICTION: 4,
     Verdict.BAD_DATA: 5,
     "stale": 6,
+    Verdict.VALVE_NOT_RESPONDING: 7,
 }
 """Verdict codes of register +0 ("none": no assessment yet; "stale": no fresh samples)."""
 

@@ -38,7 +38,7 @@ def _error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
 
 
 def test_json_is_one_assessment(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["analyze", str(loop_csv), "--kp", "1", "--json"]) == 0
+    assert main(["analyze", str(loop_csv), "--kp", "1", "--op-range", "0", "100", "--json"]) == 0
     out = capsys.readouterr().out
     a = Assessment.from_dict(json.loads(out))
     assert a.verdict == Verdict.STICTION
@@ -53,7 +53,36 @@ def test_text_output(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None
     assert main(["analyze", str(loop_csv)]) == 0
     out = capsys.readouterr().out
     assert "verdict: stiction" in out
-    assert "fd:" in out
+    assert "fd_op:" in out
+    assert "in OP units (give op_range for fractions of span)" in out
+    assert main(["analyze", str(loop_csv), "--op-range", "0", "100"]) == 0
+    assert "  fd: 0.269" in capsys.readouterr().out
+
+
+def test_utf8_byte_order_mark_is_read(tmp_path: Path, loop_csv: Path,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "bom.csv"
+    p.write_bytes(b"\xef\xbb\xbf" + loop_csv.read_bytes())
+    assert main(["analyze", str(p)]) == 0
+    assert "verdict: stiction" in capsys.readouterr().out
+
+
+def test_historian_time_stamps_go_on_a_grid(tmp_path: Path, loop_csv: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """A repeated time stamp keeps its last row; rows missing from the grid are gaps."""
+    data = np.genfromtxt(loop_csv, delimiter=",", names=True)
+    keep = np.ones(data.size, dtype=bool)
+    keep[[50, 51, 700]] = False  # three rows missing
+    rows = [(t, o, v) for (t, o, v), k in zip(data, keep, strict=True) if k]
+    rows.insert(10, (rows[10][0], 0.0, 0.0))  # repeated stamp: the later row wins
+    p = tmp_path / "hist.csv"
+    p.write_text("t,op,pv\n" + "".join(f"{t:g},{o:.9g},{v:.9g}\n" for t, o, v in rows))
+    assert main(["analyze", str(p)]) == 0
+    out = capsys.readouterr().out
+    assert "verdict: stiction" in out
+    assert "1 rows repeat a time stamp (on a 1 s grid): the last of each kept" in out
+    assert "3 samples missing from the 1 s time grid: treated as gaps" in out
+    assert "interpolated 3 missing samples" in out
 
 
 def test_columns_and_ts_options(tmp_path: Path, loop_csv: Path,
@@ -134,17 +163,20 @@ def test_fewer_than_two_samples(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert "need at least 2" in _error(capsys, ["analyze", str(p)])
 
 
-@pytest.mark.parametrize("times", [(0, 1, 1), (0, 2, 1)])
-def test_non_increasing_time(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                             times: tuple[int, int, int]) -> None:
-    p = _write(tmp_path, "t,op,pv\n" + "".join(f"{t},1,2\n" for t in times))
+def test_time_going_backwards(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "t,op,pv\n" + "".join(f"{t},1,2\n" for t in (0, 2, 1)))
     err = _error(capsys, ["analyze", str(p)])
-    assert "time not increasing at line 4" in err
+    assert "time goes backwards at line 4 (2 -> 1)" in err
+
+
+def test_one_time_stamp_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "t,op,pv\n" + "".join(f"{t},1,2\n" for t in (5, 5, 5)))
+    assert "holds one time only; give --ts S" in _error(capsys, ["analyze", str(p)])
 
 
 def test_missing_time(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     p = _write(tmp_path, "t,op,pv\n0,1,2\n,1,2\n")
-    assert "missing times" in _error(capsys, ["analyze", str(p)])
+    assert "column 't' has a missing time at line 3" in _error(capsys, ["analyze", str(p)])
 
 
 @pytest.mark.parametrize(

@@ -100,7 +100,7 @@ def test_short_gaps_are_interpolated(loop: tuple[np.ndarray, np.ndarray]) -> Non
     op = op.copy()
     pv[[100, 400, 401, 402, 800]] = np.nan
     op[600] = np.inf
-    a = analyze(op, pv, ts=1.0, kp=1.0)
+    a = analyze(op, pv, ts=1.0, kp=1.0, op_range=(0.0, 100.0))
     assert a.verdict == Verdict.STICTION
     assert any("interpolated 6 missing samples" in w for w in a.warnings)
     assert a.fd is not None
@@ -148,16 +148,31 @@ def test_frozen_pv(loop: tuple[np.ndarray, np.ndarray]) -> None:
     _bad(analyze(op, pv, ts=1.0), "PV frozen")
 
 
-def test_pv_still_while_op_ramps_points_at_the_valve() -> None:
-    """Plant record 2411FIC10104: the flow reads 0 while OP ramps 5 -> 80 %. Still
-    bad_data (a dead transmitter looks the same), but the reason names the valve."""
+def test_pv_still_while_op_ramps_is_a_valve_not_responding() -> None:
+    """Plant record 2411FIC10104: the flow falls to 0 and stays there while OP ramps
+    5 -> 80 %: not a data problem; the verdict names the valve (the reason names the
+    frozen transmitter as the other explanation)."""
     rng = np.random.default_rng(0)
     op = np.linspace(5.0, 80.0, 750) + rng.normal(0, 0.05, 750)
     pv = np.zeros(750)
     pv[:100] = np.abs(rng.normal(0.4, 0.1, 100))
-    a = analyze(op, pv, ts=10.0)
-    _bad(a, "PV frozen")
-    assert "while OP moved 65 % of its range: valve stuck" in a.reason
+    a = analyze(op, pv, ts=10.0, op_range=(0.0, 100.0))
+    assert a.verdict == Verdict.VALVE_NOT_RESPONDING, a
+    assert "OP travelled 64% of its span while PV stood still at 0" in a.reason
+    assert "transmitter frozen" in a.reason
+    b = analyze(op * 163.83, pv * 7.0 + 2.0, ts=10.0)  # raw counts, no span: OP units
+    assert b.verdict == Verdict.VALVE_NOT_RESPONDING, b
+    assert "(OP units; give op_range" in b.reason
+
+
+def test_pv_dead_all_window_while_op_ramps_is_bad_data_naming_the_valve() -> None:
+    """Plant record RHT FIC10112: PV never moves (a dead tag) while OP ramps: nothing
+    shows the valve did not respond rather than the transmitter died: bad_data, with the
+    hint."""
+    op = np.linspace(5.0, 80.0, 750)
+    a = analyze(op, np.full(750, 3.5e-44), ts=10.0)
+    _bad(a, "PV is constant while OP moved")
+    assert "valve stuck or not responding" in a.reason
 
 
 def test_frozen_pv_with_op_still_is_a_tag_problem() -> None:
@@ -170,6 +185,17 @@ def test_frozen_pv_with_op_still_is_a_tag_problem() -> None:
 def test_saturated_op(loop: tuple[np.ndarray, np.ndarray]) -> None:
     op, pv = loop
     _bad(analyze(np.clip(op, 0.0, 45.0), pv, ts=1.0, op_range=(0.0, 45.0)), "OP saturated")
+    # pinned at its own maximum whatever the units: raw counts, no op_range given
+    a = analyze(np.clip(op, 0.0, 45.0) * 163.83, pv, ts=1.0)
+    _bad(a, "OP saturated: pinned at its maximum (7372.35)")
+
+
+def test_op_outside_0_100_is_not_saturated(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    """No unit is assumed: OP in raw counts, in 4-20 mA or shifted below 0 is analysed."""
+    op, pv = loop
+    for scaled in (op * 163.83, op * 0.16 + 4.0, op - 150.0, 100.0 - op):
+        a = analyze(scaled, pv, ts=1.0)
+        assert a.verdict == Verdict.STICTION, a
 
 
 def test_quantised_pv(loop: tuple[np.ndarray, np.ndarray]) -> None:
@@ -193,7 +219,7 @@ def test_oscillation_too_fast_for_the_sample_time() -> None:
 
 def test_fs_needs_kp(loop: tuple[np.ndarray, np.ndarray]) -> None:
     op, pv = loop
-    a = analyze(op, pv, ts=1.0)
+    a = analyze(op, pv, ts=1.0, op_range=(0.0, 100.0))
     assert a.verdict == Verdict.STICTION
     assert a.fd is not None
     assert a.fs is None
@@ -203,7 +229,7 @@ def test_fs_needs_kp(loop: tuple[np.ndarray, np.ndarray]) -> None:
 
 def test_op_range_scales_fractions(loop: tuple[np.ndarray, np.ndarray]) -> None:
     op, pv = loop
-    a = analyze(op, pv, ts=1.0, kp=1.0)
+    a = analyze(op, pv, ts=1.0, kp=1.0, op_range=(0.0, 100.0))
     b = analyze(op / 5.0 + 4.0, pv, ts=1.0, kp=5.0, op_range=(4.0, 24.0))  # 4-20 mA style
     assert a.fd is not None
     assert b.fd is not None
@@ -212,8 +238,19 @@ def test_op_range_scales_fractions(loop: tuple[np.ndarray, np.ndarray]) -> None:
     assert b.fs == pytest.approx(a.fs, rel=1e-3)
 
 
+def test_without_op_range_sizes_are_in_op_units(loop: tuple[np.ndarray, np.ndarray]) -> None:
+    op, pv = loop
+    a = analyze(op, pv, ts=1.0, kp=1.0, op_range=(0.0, 100.0))
+    b = analyze(op * 2.0, pv, ts=1.0, kp=0.5)
+    assert (b.fd, b.fs, b.jump) == (None, None, None)
+    assert a.fd_op is not None
+    assert b.fd_op == pytest.approx(2.0 * a.fd_op, rel=1e-3)
+    assert "in OP units (give op_range for fractions of span)" in b.reason
+
+
 def test_to_dict_has_exactly_the_fields(loop: tuple[np.ndarray, np.ndarray]) -> None:
     op, pv = loop
     d = analyze(op, pv, ts=1.0, kp=1.0).to_dict()
     assert set(d) == {"verdict", "reason", "oscillating", "period_s", "stiction_index", "fd",
-                      "fs", "jump", "fd_op", "fs_op", "cycles_used", "multi_jump", "warnings"}
+                      "fs", "jump", "fd_op", "fs_op", "cycles_used", "multi_jump", "warnings",
+                      "confidence", "evidence"}

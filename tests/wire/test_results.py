@@ -74,7 +74,8 @@ def test_the_layout_fits_the_block_and_the_codes_are_the_documented_ones() -> No
     assert [(f.name, f.offset, f.type) for f in LAYOUT][:2] == [("code", 0, "uint16"),
                                                               ("seq", 1, "uint16")]
     assert VERDICT_CODES == {"none": 0, "not_oscillating": 1, "no_stiction": 2,
-                             "undetermined": 3, "stiction": 4, "bad_data": 5, "stale": 6}
+                             "undetermined": 3, "stiction": 4, "bad_data": 5, "stale": 6,
+                             "valve_not_responding": 7}
     st = _store()
     assert [verdict_code(r) for r in st.results] == [4, 2, 0]
     assert verdict_code(st.results[0], stale=True) == 6

@@ -1,0 +1,168 @@
+"""Every test on one window, each kept with its value and its vote.
+
+One test sees one signature of a sticky valve and fails somewhere else; their agreement is
+the evidence (``../shared/docs/detection-methods.md``). :func:`find_cycle` finds the
+oscillation the shape tests look at, :func:`gather` runs every test and returns one
+:class:`~stiction.Evidence` per test, in :data:`TESTS` order:
+
+``si_op``, ``si_pv``
+    He et al. (2007) curve fitting on OP and on PV (:mod:`._detect`): triangle (+1, SI >=
+    0.6) or sine (-1, SI <= 0.4), only when the shapes stand out of the noise. A sticky
+    valve makes OP a triangle in a fast self-regulating loop and PV one in an integrating
+    or slow loop: both are run whatever the process type, so a level loop analysed as
+    self-regulating still shows its triangle.
+``bicoherence``
+    Choudhury et al. (2004) nonlinearity of PV (:mod:`._bicoherence`).
+``horch``
+    Horch (1999) odd or even OP-PV cross-correlation, or for an integrating loop Horch
+    (2000) PV curvature (:mod:`._horch`).
+``stick_slip``
+    Kano et al. (2004) style stick-slip episodes (:mod:`._stickslip`): only ever +1.
+
+The cycle. Set-point and load steps inside a window hide a limit cycle from the ACF (the
+straight-line detrend leaves a step, which dominates it), so each signal is also looked at
+with a running median over a third of the window removed (:func:`._oscillation.baseline`),
+and the variant with the more significant ACF lobe is kept. A cycle counts when its ACF
+lobe is significant and its regularity exceeds ``MIN_REGULARITY``, looser than Thornhill's
+1 (which ``Assessment.oscillating`` keeps): stick-slip cycles under load are irregular, and
+every shape test has its own guard against noise.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ._assessment import Evidence
+from ._bicoherence import bicoherence_test
+from ._detect import NO_STICTION_SI, STICTION_SI, stiction_index
+from ._horch import horch_test
+from ._oscillation import MIN_PERIOD, Oscillation, baseline, detect_oscillation, detrend
+from ._stickslip import stick_slip
+from ._validate import FloatArray
+
+__all__ = ["MIN_CYCLES", "TESTS", "Cycle", "find_cycle", "gather", "gather_for_calibration"]
+
+TESTS = ("si_op", "si_pv", "bicoherence", "horch", "stick_slip")
+MIN_REGULARITY = 0.5
+MIN_CYCLES = 2.5
+"""Fewer periods than this in the window: too short to judge a cycle's shape."""
+BASELINE_FRACTION = 3  # running-median window: a third of the window
+
+
+@dataclasses.dataclass(frozen=True)
+class Signal:
+    """One signal as the shape tests see it: ``x`` with its baseline (or line) removed."""
+
+    x: FloatArray
+    osc: Oscillation
+    significance: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Cycle:
+    """The oscillation of a window: ``period`` in samples from ``source`` ("OP"/"PV"),
+    None when neither signal cycles. ``op``/``pv`` are the signals as the tests see them."""
+
+    op: Signal
+    pv: Signal
+    period: float | None
+    source: str
+    regular: bool  # Thornhill's regularity > 1 on the source signal
+
+    @property
+    def cycling(self) -> bool:
+        return self.period is not None
+
+
+def _signal(x: FloatArray) -> Signal:
+    best: Signal | None = None
+    variants = [detrend(x)]
+    if x.size >= 48:
+        variants.append(detrend(x - baseline(x, x.size // BASELINE_FRACTION)))
+    for y in variants:
+        osc = detect_oscillation(y, min_regularity=MIN_REGULARITY)
+        sig = osc.significance if osc.oscillating else -1.0
+        if best is None or sig > best.significance:
+            best = Signal(y, osc, sig)
+    assert best is not None
+    return best
+
+
+def find_cycle(op: FloatArray, pv: FloatArray, *, integrating: bool) -> Cycle:
+    """The cycle of a window (module doc); OP's for a self-regulating loop, PV's for an
+    integrating one, the other signal's when that one does not cycle."""
+    so, sp = _signal(op), _signal(pv)
+    order = [("PV", sp), ("OP", so)] if integrating else [("OP", so), ("PV", sp)]
+    for name, s in order:
+        if s.osc.oscillating and s.osc.period is not None:
+            return Cycle(so, sp, s.osc.period, name, s.osc.regularity > 1.0)
+    return Cycle(so, sp, None, "", False)
+
+
+def _si(name: str, s: Signal, fallback: float | None) -> Evidence:
+    label = name[-2:].upper()
+    period = s.osc.period if s.osc.oscillating else fallback
+    if period is None:
+        return Evidence(name, None, 0, f"{label} does not cycle")
+    if period < MIN_PERIOD:
+        return Evidence(name, None, 0, f"{label} cycles too fast to see its shape "
+                        f"({period:.1f} samples a period, need {MIN_PERIOD:g})")
+    if s.x.size / period < MIN_CYCLES:
+        return Evidence(name, None, 0, f"{label}: {s.x.size / period:.1f} cycles, too few "
+                        f"to judge the shape (need {MIN_CYCLES:g})")
+    si = stiction_index(s.x, period)
+    if si.si is None:
+        return Evidence(name, None, 0, f"too few clean half periods in {label} to fit")
+    if not si.resolved:
+        return Evidence(name, si.si, 0, f"{label} too noisy to tell a triangle from a sine")
+    if si.si >= STICTION_SI:
+        return Evidence(name, si.si, 1, f"{label} half cycles fit a triangle")
+    if si.si <= NO_STICTION_SI:
+        return Evidence(name, si.si, -1, f"{label} half cycles fit a sine")
+    return Evidence(name, si.si, 0, f"{label} neither triangular nor sinusoidal")
+
+
+def _stick_slip(op: FloatArray, pv: FloatArray) -> Evidence:
+    ss = stick_slip(op, pv)
+    if not ss.detected:
+        note = ("stick-slip episodes with opposite gain signs" if ss.episodes
+                else "no stick-slip episode")
+        return Evidence("stick_slip", float(len(ss.episodes)), 0, note)
+    e = max(ss.episodes, key=lambda ep: abs(ep.jump))
+    count = len(ss.episodes)
+    return Evidence("stick_slip", float(count), 1,
+                    f"{count} stick-slip episode{'s' if count > 1 else ''}: OP ramped "
+                    f"(largest {e.op_travel:+.3g} over {e.stuck} samples) with PV still, "
+                    f"then PV jumped ({e.jump:+.3g}) and OP did not")
+
+
+def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool
+           ) -> tuple[Evidence, ...]:
+    """Every test of :data:`TESTS` on a clean window (equal-length, finite)."""
+    p = cycle.period
+    horch_period = p if p is not None and p >= 1.0 else None
+    found = {
+        "si_op": _si("si_op", cycle.op, p),
+        "si_pv": _si("si_pv", cycle.pv, p),
+        "bicoherence": bicoherence_test(cycle.pv.x, period=horch_period).evidence(),
+        "horch": (horch_test(cycle.op.x, cycle.pv.x, period=horch_period,
+                             integrating=integrating).evidence() if p is not None
+                  else Evidence("horch", None, 0, "no cycle to correlate")),
+        "stick_slip": _stick_slip(op, pv),
+    }
+    return tuple(found[name] for name in TESTS)
+
+
+def gather_for_calibration(op: np.ndarray, pv: np.ndarray, *, ts: float,
+                           integrating: bool = False) -> list[int]:
+    """The votes of :data:`TESTS` on a raw window as :func:`stiction.analyze` would see it
+    (all zero when the window is bad data or a valve not responding)."""
+    from ._quality import check_quality  # noqa: PLC0415  (bench-only entry point)
+
+    q = check_quality(np.asarray(op, dtype=np.float64), np.asarray(pv, dtype=np.float64))
+    if q.reason is not None or q.not_responding is not None:
+        return [0] * len(TESTS)
+    cycle = find_cycle(q.op, q.pv, integrating=integrating)
+    return [e.vote for e in gather(q.op, q.pv, cycle, integrating=integrating)]
