@@ -26,7 +26,7 @@ from test_deploy_live import GATEWAY, HEALTHY, TIME_SCALE
 
 from bench._net import free_port
 
-pytestmark = [pytest.mark.e2e, pytest.mark.timing, pytest.mark.timeout(120)]
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(120)]
 
 WATCHDOG_S = 2.0
 

@@ -19,7 +19,7 @@ from gateway.errors import ConfigError
 from gateway.runtime.gateway import Gateway
 from plcsim import PlcSim, gateway_config, load_sim_config
 
-pytestmark = [pytest.mark.e2e, pytest.mark.timing, pytest.mark.timeout(90)]
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(90)]
 FAKE = "opcua_fake_analyze:analyze"
 
 
@@ -136,6 +136,7 @@ def test_wrong_password_device_down_rest_of_gateway_works(pki: Pki, tmp_path: Pa
     run(main(), timeout=60)
 
 
+@pytest.mark.timing  # the reconnect gaps are counted in 20 ms ticks
 def test_opcua_server_restart_mid_run_is_a_gap_then_polling_resumes(pki: Pki,
                                                                     tmp_path: Path) -> None:
     """The plc-sim's OPC UA server restarts; the gateway keeps running, the outage is

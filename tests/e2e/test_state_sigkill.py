@@ -4,6 +4,7 @@ start restores it."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import time
@@ -12,6 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 from reliability_helpers import (
+    children,
     device,
     raw_config,
     sim_loops,
@@ -47,8 +49,12 @@ def test_sigkill_loses_at_most_one_persist_interval(tmp_path: Path) -> None:
                 time.sleep(0.05)
             time.sleep(2.0 + 0.37)  # a few writes, then kill somewhere between two
             kill_wall = time.time()
-            os.kill(gw.pid, signal.SIGKILL)
+            workers = children(gw.pid)  # SIGKILL orphans them: systemd's KillMode=mixed
+            os.kill(gw.pid, signal.SIGKILL)  # would end them, here the test does
             gw.wait(10)
+            for pid in workers:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
         finally:
             stop(gw)
         _header, arrays = read_state(state)

@@ -192,6 +192,14 @@ def sim_loops(n: int, device_name: str = "plc", *, window_s: float = 10.0
     return [loop(f"L{k}", device_name, 4 * k, 20 * k, window_s=window_s) for k in range(n)]
 
 
+def children(pid: int) -> list[int]:
+    """The process ids of ``pid``'s children (Linux /proc; empty if it has none)."""
+    with contextlib.suppress(OSError):
+        text = Path(f"/proc/{pid}/task/{pid}/children").read_text()
+        return [int(c) for c in text.split()]
+    return []
+
+
 def start_gateway(cfg: Path, log: Path, env: dict[str, str] | None = None
                   ) -> subprocess.Popen[bytes]:
     with open(log, "ab") as f:
