@@ -109,6 +109,7 @@ class OpcUaPlcServer:
         security: ServerSecurity | None = None,
         application_uri: str | None = None,
         name: str = "stiction-gateway plc-sim",
+        clock: bool = True,
     ) -> None:
         if len(set(loops)) != len(loops):
             raise ValueError("loops: names must be unique")
@@ -119,6 +120,7 @@ class OpcUaPlcServer:
         self.port = port
         self.security = security
         self.name = name
+        self.clock = clock  # False: no CurrentTime updates, so stop() need not wait up to 1 s
         if application_uri is None and security is not None:
             application_uri = application_uri_of(load_certificate_file(security.certificate))
         self.application_uri = application_uri or "urn:stiction-gateway:plc-sim:server"
@@ -150,6 +152,7 @@ class OpcUaPlcServer:
         server = Server(user_manager=_UserMap(self.security.users)
                         if self.security is not None and self.security.users else None)
         await server.init()
+        server.disable_clock(not self.clock)
         server.set_endpoint(self.endpoint)
         server.set_server_name(self.name)
         await server.set_application_uri(self.application_uri)

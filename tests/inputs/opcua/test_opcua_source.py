@@ -4,6 +4,7 @@ and plausibility are core.points' job, reconnecting the poller's)."""
 from __future__ import annotations
 
 import asyncio
+import functools
 import logging
 import time
 from typing import Any
@@ -35,6 +36,7 @@ from stiction.valves import HeValve
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(60)]
 
 LOOPS = ["FIC101", "LIC102", "TIC205"]
+Server = functools.partial(OpcUaPlcServer, clock=False)  # no 1 s clock task to wait for
 SCENARIOS = ["table4-case2", "table5-case1", "healthy"]
 
 
@@ -92,7 +94,7 @@ def test_secure_session_with_login_reads_simulated_loops(pki: Pki, policy: str,
     async def main() -> None:
         bank = loop_bank(SCENARIOS)
         sec = server_security(pki, policy=policy, mode=mode, trusted_clients=True)
-        async with OpcUaPlcServer(LOOPS, port=port, security=sec) as server:
+        async with Server(LOOPS, port=port, security=sec) as server:
             counter = ReadCounter(server)
             cfg = device(port, client_security(pki, policy=policy, mode=mode))
             async with OpcUaInput(cfg, points(LOOPS)) as inp:
@@ -117,7 +119,7 @@ def test_raw_values_nsu_node_ids_and_chunked_reads(pki: Pki) -> None:
     port = free_port()
 
     async def main() -> None:
-        async with OpcUaPlcServer(["A", "B"], port=port) as server:
+        async with Server(["A", "B"], port=port) as server:
             await server.update([10.0, 20.0], [1.5, 2.5])
             pts = [
                 PointSpec("A", "op", "ns=2;s=A.OP", scale=2.0, offset=1.0),
@@ -142,7 +144,7 @@ def test_missing_node_is_bad_while_the_others_go_on(pki: Pki,
 
     async def main() -> None:
         sec = server_security(pki)
-        async with OpcUaPlcServer(["A", "B"], port=port, security=sec) as server:
+        async with Server(["A", "B"], port=port, security=sec) as server:
             await server.update([10.0, 20.0], [1.0, 2.0])
             pts = [*points(["A"]), PointSpec("B", "op", "ns=2;s=B.OPX"),
                    PointSpec("B", "pv", "ns=2;s=B.PV")]
@@ -165,7 +167,7 @@ def test_uncertain_bad_and_non_numeric_values_are_gaps(pki: Pki) -> None:
     port = free_port()
 
     async def main() -> None:
-        async with OpcUaPlcServer(["A", "B", "C"], port=port) as server:
+        async with Server(["A", "B", "C"], port=port) as server:
             srv = server.server
             assert srv is not None
             await srv.nodes.objects.add_variable(ua.NodeId.from_string("ns=2;s=B.TEXT"),
@@ -193,7 +195,7 @@ def test_wrong_password_is_refused_with_a_clear_auth_error(pki: Pki) -> None:
     port = free_port()
 
     async def main() -> None:
-        async with OpcUaPlcServer(["A"], port=port, security=server_security(pki)) as server:
+        async with Server(["A"], port=port, security=server_security(pki)) as server:
             await server.update([1.0], [2.0])
             cfg = device(port, client_security(pki, password_file=pki.wrong_password_file))
             inp = OpcUaInput(cfg, points(["A"]))
@@ -223,7 +225,7 @@ def test_untrusted_server_certificate_is_refused(pki: Pki) -> None:
     port = free_port()
 
     async def main() -> None:
-        async with OpcUaPlcServer(["A"], port=port, security=server_security(pki)):
+        async with Server(["A"], port=port, security=server_security(pki)):
             cfg = device(port, client_security(pki, trust_store=pki.untrusted))
             with pytest.raises(DeviceError, match=r"server certificate CN=test plc-sim, "
                                r"SHA-1 thumbprint [0-9A-F]{40} is not trusted "
@@ -248,7 +250,7 @@ def test_server_refusing_the_gateway_certificate_or_the_mode(pki: Pki) -> None:
     async def main() -> None:
         sec = server_security(pki, trusted_clients=True)
         sec = type(sec)(**{**sec.__dict__, "trusted_clients": pki.untrusted})
-        async with OpcUaPlcServer(["A"], port=port, security=sec):
+        async with Server(["A"], port=port, security=sec):
             with pytest.raises(DeviceError, match=r"the server refused the secure channel or "
                                r"the gateway's certificate \(BadCertificateUntrusted\): make "
                                r"the server trust the gateway's certificate .*client\.der"):
@@ -269,7 +271,7 @@ def test_server_down_at_start_then_up(pki: Pki) -> None:
         with pytest.raises(DeviceError, match=r"refused the connection") as info:
             await inp.connect()
         assert info.value.kind == "connect"
-        async with OpcUaPlcServer(["A"], port=port, security=server_security(pki)) as server:
+        async with Server(["A"], port=port, security=server_security(pki)) as server:
             await server.update([3.0], [4.0])
             res = await _read_until_ok(inp, 5.0)
             assert list(res.values) == [3.0, 4.0]
@@ -299,7 +301,7 @@ def test_server_restart_mid_run_resumes_without_a_new_adapter(pki: Pki) -> None:
     port = free_port()
 
     async def main() -> dict[str, Any]:
-        server = OpcUaPlcServer(["A", "B"], port=port, security=server_security(pki))
+        server = Server(["A", "B"], port=port, security=server_security(pki))
         await server.start()
         await server.update([1.0, 2.0], [3.0, 4.0])
         inp = OpcUaInput(device(port, client_security(pki)), points(["A", "B"]))
@@ -315,7 +317,7 @@ def test_server_restart_mid_run_resumes_without_a_new_adapter(pki: Pki) -> None:
             assert time.monotonic() - t0 < 1.5  # a poll never hangs on a dead server
             kinds.append(info.value.kind)
             await asyncio.sleep(0.2)
-        server2 = OpcUaPlcServer(["A", "B"], port=port, security=server_security(pki))
+        server2 = Server(["A", "B"], port=port, security=server_security(pki))
         await server2.start()
         await server2.update([5.0, 6.0], [7.0, 8.0])
         t_up = time.monotonic()
