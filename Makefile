@@ -1,6 +1,8 @@
 # The two commands the README promises: `make demo` and `make test`.
 # Each creates .venv on first use (needs only python3) and installs what it needs.
 PYTHON ?= python3
+# test processes beside each other (2 cores); tests marked `timing` run alone afterwards
+TEST_WORKERS ?= 2
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
@@ -17,15 +19,16 @@ demo: $(STAMP)
 	$(BIN)/stiction-gateway demo
 
 test: $(STAMP)
-	$(BIN)/ruff check stiction gateway tests bench
-	$(BIN)/mypy stiction gateway
-	$(BIN)/python -m pytest -q
+	$(BIN)/ruff check stiction gateway plcsim tests bench
+	$(BIN)/mypy stiction gateway plcsim
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not timing"
+	$(BIN)/python -m pytest -q -m timing
 
 lint: $(STAMP)
-	$(BIN)/ruff check stiction gateway tests bench
+	$(BIN)/ruff check stiction gateway plcsim tests bench
 
 typecheck: $(STAMP)
-	$(BIN)/mypy stiction gateway
+	$(BIN)/mypy stiction gateway plcsim
 
 bench: $(STAMP)
 	$(BIN)/python -m bench

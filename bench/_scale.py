@@ -1,12 +1,13 @@
 """Machinery of the scale benchmarks: simulated PLCs and the gateway as separate processes.
 
 :func:`run_scale` starts N simulated PLCs (``python -m bench._scale sim CONFIG``, each a
-:class:`gateway.plc_sim.PlcSim` serving its share of M loops on 127.0.0.1) and one gateway
-(``python -m bench._scale gateway SPEC``, a real :class:`gateway.app.Gateway` polling all of
-them), lets the gateway poll for ``duration`` seconds and collects what each child measured
-about itself: the gateway its own CPU time (``time.process_time``, all its threads, not its
-analysis workers), RSS, poll start times and the samples in its windows; each PLC the requests
-it served and the time its steps took. Every child is killed on exit, whatever happens.
+:class:`plcsim.sim.PlcSim` serving its share of M loops on 127.0.0.1) and one gateway
+(``python -m bench._scale gateway SPEC``, a real :class:`gateway.runtime.gateway.Gateway`
+polling all of them), lets the gateway poll for ``duration`` seconds and collects what each
+child measured about itself: the gateway its own CPU time (``time.process_time``, all its
+threads, not its analysis workers), RSS, poll start times and the samples in its windows; each
+PLC the requests it served and the time its steps took. Every child is killed on exit,
+whatever happens.
 
 Figures (see :class:`ScaleResult`):
 
@@ -21,8 +22,8 @@ Figures (see :class:`ScaleResult`):
   ticks that started during the round.
 
 The gateway config is built from the per-PLC configs that
-:func:`gateway.plc_sim.gateway_config` writes, joined into one document whose result blocks
-:func:`gateway.plc_sim.assign_result_blocks` numbers across all loops (3,276 per result unit
+:func:`plcsim.gateway_config.gateway_config` writes, joined into one document whose result blocks
+:func:`plcsim.gateway_config.assign_result_blocks` numbers across all loops (3,276 per result unit
 id: 10,000 loops use unit ids 1-4), and validated as a whole by
 :func:`gateway.config.parse_config`: the gateway runs a real config, result server included.
 """
@@ -49,11 +50,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from gateway.app import Gateway
 from gateway.config import Config, parse_config
-from gateway.inputs.base import Quality
-from gateway.plc_sim import PlcSim, _build_banks, assign_result_blocks, load_sim_config
-from gateway.plc_sim import gateway_config as sim_gateway_config
+from gateway.core.points import Quality
+from gateway.runtime.gateway import Gateway
+from plcsim import PlcSim, assign_result_blocks, load_sim_config
+from plcsim import gateway_config as sim_gateway_config
+from plcsim.sim import build_banks
 
 REGISTERS_PER_LOOP = 4
 MAX_REGISTERS = 125
@@ -188,7 +190,7 @@ def _prefill(banks: Sequence[Any], sim_path: str, t_end: float) -> float:
     n = len(cfg.loops)
     op = np.empty((size, n), dtype=np.float32)
     pv = np.empty((size, n), dtype=np.float32)
-    sims = _build_banks(cfg)
+    sims = build_banks(cfg)
     for k in range(size):
         for b in sims:
             t = b.bank.t
@@ -221,7 +223,7 @@ async def _gateway_child(spec: dict[str, Any]) -> dict[str, Any]:
     rss_start = rss_bytes()[0]
     config = gateway_config(spec["sims"], spec["ports"], workers=spec.get("workers", 0))
     gw = Gateway(config, serve_http=True)
-    banks = [s.bank for p in gw.pollers for s in p.slots]
+    banks = [s.bank for p in gw.pollers for s in p.groups]
     rss_banks = rss_bytes()[0]
     window_bytes = sum(b.nbytes for b in banks)
     samples_capacity = sum(b.size * len(b.loops) for b in banks)
@@ -261,19 +263,19 @@ async def _gateway_child(spec: dict[str, Any]) -> dict[str, Any]:
         for p in gw.pollers:
             t0, jit = _jitter(p.tick_starts, p.period)
             n_due = math.ceil((end - t0) / p.period) if jit else 0
-            n_loops = sum(len(s.bank.loops) for s in p.slots)
+            n_loops = sum(len(s.bank.loops) for s in p.groups)
             expected += n_due * n_loops
-            for s in p.slots:
+            for s in p.groups:
                 b = s.bank
                 rows = (b.t >= start_unix) & (b.t < end + off)
                 stored += int(np.count_nonzero(b.quality[rows] == Quality.GOOD))
             jit_all += [j for t, j in jit if wall0 <= t < end]
             jit_round += [j for t, j in jit if round_span[0] <= t < round_span[1]]
             per_device.append({"name": p.device.name, "polls": p.polls,
-                               "planned_requests": len(getattr(p.adapter, "requests", ())),
+                               "planned_requests": len(getattr(p.source, "requests", ())),
                                "min_requests": min_requests(
                                    [(pt.address.address, pt.address.width)
-                                    for pt in p.adapter.points],  # type: ignore[attr-defined]
+                                    for pt in p.source.points],  # type: ignore[attr-defined]
                                    p.device.options.max_registers_per_request),
                                "missed_ticks": p.missed_ticks})
         rss, hwm = rss_bytes()

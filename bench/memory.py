@@ -26,7 +26,7 @@ from pathlib import Path
 import yaml
 
 from bench._scale import default_plcs, gateway_config, rss_bytes, sim_config
-from gateway.app import Gateway
+from gateway.runtime.gateway import Gateway
 
 SIZES = (100, 1000, 10000)
 WINDOW_S = 7200.0
@@ -47,7 +47,7 @@ async def _child(loops: int, window_s: float) -> dict[str, float]:
         rss0 = rss_bytes()[0]
         gw = Gateway(config, serve_http=False)
         rss1 = rss_bytes()[0]
-        banks = [s.bank for p in gw.pollers for s in p.slots]
+        banks = [s.bank for p in gw.pollers for s in p.groups]
         samples = sum(b.size * len(b.loops) for b in banks)
         batch = gw.scheduler.batch_size
         size = max(b.size for b in banks)

@@ -4,9 +4,10 @@ Windows are simulated with stiction's LoopBank, loop i running scenario
 ``SCENARIO_MIX[i % 10]`` (7 of 10 sticky: a pessimistic plant), 0.05 PV noise, Ts 1 s.
 
 1. Per window, one process: the median (and p90) time of what a worker does for one loop
-   (:func:`gateway.analysis.analyze_batch`: window fill, gap handling, ``stiction.analyze``)
+   (:func:`gateway.core.jobs.analyze_batch`: window fill, gap handling,
+   ``stiction.analyze``)
    for 1 h, 2 h and 4 h windows, split by sticky / not sticky scenario.
-2. With the gateway's worker pool (:class:`gateway.analysis.AnalysisScheduler`, default
+2. With the gateway's worker pool (:class:`gateway.runtime.scheduler.AnalysisScheduler`, default
    workers = cores - 1): loops analysed per second for a bank of K loops per window length.
 3. End to end: one full analysis round of 10,000 two-hour windows inside a gateway that
    keeps polling 10,000 loops from 20 simulated PLCs (separate processes, bench/_scale.py),
@@ -28,12 +29,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from bench._scale import SCENARIO_MIX, percentile, run_scale
-from gateway.analysis import AnalysisScheduler, BankRef, LoopJob, analyze_batch
 from gateway.config import LoopConfig, PointConfig
-from gateway.inputs.base import Quality
-from gateway.plc_sim import _build_banks, parse_sim_config
-from gateway.store import ResultStore
-from gateway.windows import WindowBank
+from gateway.core.jobs import LoopJob, analyze_batch
+from gateway.core.points import Quality
+from gateway.core.store import ResultStore
+from gateway.core.windows import LoopGroup, WindowBank
+from gateway.runtime.scheduler import AnalysisScheduler
+from plcsim import parse_sim_config
+from plcsim.sim import build_banks
 from stiction.scenarios import SCENARIOS
 
 WINDOWS_S = (3600, 7200, 14400)
@@ -56,7 +59,7 @@ def simulate_windows(loops: int, samples: int, seed: int = 0
                    "noise": 0.05} for i in range(loops)]})
     op = np.empty((samples, loops), dtype=np.float32)
     pv = np.empty((samples, loops), dtype=np.float32)
-    banks = _build_banks(cfg)
+    banks = build_banks(cfg)
     for k in range(samples):
         for b in banks:
             out = b.bank.step(b.sp_base + np.where(b.bank.t >= b.sp_time, b.sp_step, 0.0))
@@ -118,8 +121,9 @@ async def _pool_round(op: NDArray[np.float32], pv: NDArray[np.float32], names: l
     bank.count = samples
     configs = [loop_config(i, names[i % n], samples) for i in range(loops)]
     store = ResultStore([c.name for c in configs])
-    sched = AnalysisScheduler([BankRef(bank, list(range(loops)), configs, 1.0)], store,
-                              interval_wall_s=1e9, workers=workers)
+    ks = np.arange(loops, dtype=np.intp)
+    group = LoopGroup("bench", bank, tuple(configs), 2 * ks, 2 * ks + 1, ks, 1.0)
+    sched = AnalysisScheduler([group], store, interval_wall_s=1e9, workers=workers)
     await sched.start()
     try:
         t0 = time.perf_counter()

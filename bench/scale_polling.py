@@ -25,7 +25,7 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from bench._scale import SCENARIO_MIX, ScaleResult, default_plcs, run_scale
-from gateway.plc_sim import PlcSim, parse_sim_config
+from plcsim import PlcSim, parse_sim_config
 
 SIZES = (100, 1000, 10000)
 TARGET_CPU = 50.0  # % of one core

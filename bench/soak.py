@@ -40,8 +40,8 @@ import numpy as np
 import yaml
 
 from bench._net import free_port, wait_port
-from gateway.inputs.base import Quality
-from gateway.state import read_state
+from gateway.core.points import Quality
+from gateway.outputs.statefile.format import read_state
 
 PY = sys.executable
 SCENARIOS = ("table4-case2", "healthy", "table5-case2", "disturbance", "aggressive-tuning")

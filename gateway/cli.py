@@ -12,11 +12,9 @@ import logging
 import sys
 from pathlib import Path
 
-from . import plc_sim
-from .app import install_stop_signals, run
 from .config import load_config
-from .demo import run_demo
 from .errors import ConfigError, GatewayError
+from .runtime.service import install_stop_signals, run
 
 __all__ = ["build_parser", "main"]
 
@@ -56,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args, rest = parser.parse_known_args(argv)
     if args.command == "opcua-cert":  # its own parser: pass the remaining arguments on
-        from . import opcua_cert
+        from .wire import certs as opcua_cert
 
         return opcua_cert.main(rest)
     if rest:
@@ -66,10 +64,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     logging.basicConfig(level=args.log_level,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    # the adapters report every pymodbus failure as a DeviceError, logged once per outage by
+    # the sources report every pymodbus failure as a DeviceError, logged once per outage by
     # the poller; pymodbus' own per-attempt lines would repeat it every retry
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    # likewise asyncua: the OPC UA adapter maps its failures to DeviceError; its own loggers
+    # likewise asyncua: the OPC UA source maps its failures to DeviceError; its own loggers
     # would add hostname warnings and a traceback for every refused certificate
     for name in ("asyncua", "asyncuagds"):
         logging.getLogger(name).setLevel(logging.ERROR)
@@ -92,9 +90,11 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "run":
         return run(load_config(args.config), args.config)
     if args.command == "plc-sim":
-        sim_cfg = plc_sim.load_sim_config(args.config)
+        import plcsim  # the simulator ships beside the daemon, loaded on demand
+
+        sim_cfg = plcsim.load_sim_config(args.config)
         if args.write_gateway_config:
-            text = plc_sim.dump_yaml(plc_sim.gateway_config(sim_cfg))
+            text = plcsim.dump_yaml(plcsim.gateway_config(sim_cfg))
             Path(args.write_gateway_config).write_text(
                 "# Gateway config for the simulated PLC of " + args.config + "\n" + text,
                 encoding="utf-8")
@@ -104,11 +104,13 @@ def _dispatch(args: argparse.Namespace) -> int:
         async def serve_sim() -> None:
             stop = asyncio.Event()
             install_stop_signals(stop)
-            await plc_sim.serve(sim_cfg, stop)
+            await plcsim.serve(sim_cfg, stop)
 
         asyncio.run(serve_sim())
         return 0
     if args.command == "demo":
+        from plcsim.demo import run_demo
+
         logging.getLogger().setLevel(logging.WARNING)  # the table is the output
         asyncio.run(run_demo(args.duration))
         return 0

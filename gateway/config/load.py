@@ -1,0 +1,243 @@
+"""Gateway configuration: YAML → frozen dataclasses, validated at load without any network.
+
+:func:`load_config` reads a file and returns a :class:`Config` or raises
+:class:`~gateway.errors.ConfigError` listing every problem at once, each naming the file,
+the section (``device plc1``, ``loop FIC101``, ``gateway``...) and the key.
+
+Protocol-specific keys (a Modbus device's ``host``, a point's ``type``...) are parsed by the
+protocol's plugin module, found by name in :mod:`gateway.config.plugins`; the core keys are
+parsed here, all with the one validator (:mod:`gateway.config.schema`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, TypeGuard, TypeVar
+
+import yaml
+
+from ..errors import ConfigError
+from ..wire.results import MAX_RESULT_UNIT_ID, RESULT_BLOCK_SIZE, overlapping_blocks
+from . import schema as s
+from .model import (
+    MIN_WINDOW_SAMPLES,
+    PROCESSES,
+    WORD_ORDERS,
+    Config,
+    DeviceConfig,
+    GatewaySettings,
+    LoopConfig,
+    MetricsSettings,
+    PointConfig,
+    ResultServerSettings,
+)
+from .plugins import input_names, input_plugin
+from .schema import MISSING, Problems, Section
+
+__all__ = ["load_config", "parse_config"]
+
+T = TypeVar("T")
+
+
+def load_config(path: str | os.PathLike[str]) -> Config:
+    """Read and validate a YAML config file; raise ConfigError listing every problem."""
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError([f"{source}: cannot read: {exc.strerror or exc}"]) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        detail = str(exc).replace("\n", " ")
+        raise ConfigError([f"{source}: invalid YAML: {detail}"]) from None
+    return parse_config(data, source)
+
+
+def parse_config(data: Any, source: str = "<config>") -> Config:
+    """Validate an already-parsed YAML document (a mapping)."""
+    problems = Problems(source)
+    top = Section(problems, "top level", data)
+    if data is None or not top.valid:
+        if data is None:
+            problems.add("top level", None, "the file is empty")
+        raise ConfigError(problems.lines)
+
+    gateway = _settings(top.sub("gateway", "gateway"), GatewaySettings, GATEWAY_KEYS)
+    metrics = _settings(top.sub("metrics", "metrics"), MetricsSettings, METRICS_KEYS)
+    server = _settings(top.sub("modbus_server", "modbus_server"), ResultServerSettings,
+                       SERVER_KEYS)
+
+    devices: dict[str, DeviceConfig | None] = {}  # None: named but invalid
+    protocols: dict[str, str] = {}  # device name -> protocol, also for invalid devices
+    for i, _name, sec in s.entries(top, "devices", "device"):
+        dname = sec.req("name", s.string)
+        protocol = sec.req("protocol", s.string)
+        poll = sec.req("poll_interval_s", s.number(positive=True))
+        timeout = sec.req("timeout_s", s.number(positive=True))
+        options: Any = MISSING
+        if dname is not MISSING and protocol is not MISSING:
+            protocols.setdefault(dname, protocol)
+        if protocol is not MISSING:
+            plugin = input_plugin(protocol)
+            if plugin is None:
+                sec.error("protocol", f"unknown protocol {protocol!r} "
+                          f"(known: {', '.join(input_names())})")
+            else:
+                options = plugin.parse_device(sec)
+        sec.done()
+        if dname is not MISSING and dname in devices:
+            sec.error("name", f"duplicate device name {dname!r}")
+            continue
+        if MISSING in (dname, protocol, poll, timeout, options):
+            devices.setdefault(dname if dname is not MISSING else f"#{i}", None)
+            continue
+        devices[dname] = DeviceConfig(dname, protocol, poll, timeout, options)
+
+    loops: list[LoopConfig] = []
+    # (loop, result unit id, result_address) of every loop that has both
+    blocks: list[tuple[str, int, int]] = []
+    names: set[str] = set()
+    for _i, name, sec in s.entries(top, "loops", "loop"):
+        loop = _parse_loop(sec, devices, protocols, server.unit_id)
+        sec.done()
+        address = sec.raw.get("result_address")
+        unit = sec.raw.get("result_unit_id", server.unit_id)
+        if isinstance(name, str) and _is_int(address) and _is_int(unit) \
+                and (unit == server.unit_id or 1 <= unit <= MAX_RESULT_UNIT_ID):
+            blocks.append((name, unit, address))
+        if isinstance(name, str):
+            if name in names:
+                sec.error("name", f"duplicate loop name {name!r}")
+                continue
+            names.add(name)
+        if loop is not None:
+            loops.append(loop)
+    top.done()
+    _check_result_blocks(problems, blocks, server.unit_id)
+    if not problems.ok:
+        raise ConfigError(problems.lines)
+    return Config(source, tuple(d for d in devices.values() if d is not None), tuple(loops),
+                  gateway, metrics, server)
+
+
+def _is_int(value: Any) -> TypeGuard[int]:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+GATEWAY_KEYS: dict[str, Callable[[Any], Any]] = {
+    "analysis_interval_s": s.number(positive=True),
+    "time_scale": s.number(positive=True),
+    "state_file": s.string,
+    "analysis_workers": s.integer(0, 256),
+    "persist_interval_s": s.number(positive=True),
+    "reconnect_max_s": s.number(positive=True),
+}
+METRICS_KEYS: dict[str, Callable[[Any], Any]] = {"listen": s.listen_address}
+SERVER_KEYS: dict[str, Callable[[Any], Any]] = {
+    "listen": s.listen_address,
+    "unit_id": s.integer(0, 247),
+    "word_order": s.choice(WORD_ORDERS),
+}
+
+
+def _settings(sec: Section, cls: Callable[..., T], keys: Mapping[str, Callable[[Any], Any]]
+              ) -> T:
+    """A settings section: each key of ``keys`` read with its converter, defaulting to the
+    dataclass ``cls``'s own default."""
+    defaults = cls()
+    out = cls(**{key: sec.opt(key, conv, getattr(defaults, key)) for key, conv in keys.items()})
+    sec.done()
+    return out
+
+
+def _parse_point(sec: Section, device: DeviceConfig | None,
+                 protocol: str | None) -> PointConfig | None:
+    """A loop's op/pv point; with ``device`` None (the device itself is invalid) the keys
+    are still checked against ``protocol`` if known, so every problem is reported."""
+    scale = sec.opt("scale", s.number(), 1.0)
+    offset = sec.opt("offset", s.number(), 0.0)
+    valid = sec.opt("range", s.number_pair, None)
+    if scale == 0.0:
+        sec.error("scale", "must not be 0")
+        scale = MISSING
+    address: Any = MISSING
+    plugin = input_plugin(device.protocol if device is not None else protocol or "")
+    if plugin is not None:
+        address = plugin.parse_point(sec, device.options if device is not None else None)
+    else:  # unknown device or protocol: the device's own error says it all
+        for key in sec.raw:
+            sec.raw_value(key)
+    sec.done()
+    if MISSING in (scale, offset, address, valid):
+        return None
+    return PointConfig(address, scale, offset, valid)
+
+
+def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
+                protocols: Mapping[str, str], default_unit: Any) -> LoopConfig | None:
+    name = sec.req("name", s.string)
+    device_name = sec.req("device", s.string)
+    device: DeviceConfig | None = None
+    if device_name is not MISSING:
+        if device_name not in devices:
+            known = ", ".join(k for k in devices if not k.startswith("#")) or "none"
+            sec.error("device", f"unknown device {device_name!r} (devices: {known})")
+        else:
+            device = devices[device_name]
+    points: dict[str, PointConfig | None] = {}
+    for role in ("op", "pv"):
+        if not sec.has(role):
+            sec.req(role, dict)  # records "missing required key"
+            points[role] = None
+            continue
+        psec = sec.sub(role)
+        points[role] = (_parse_point(psec, device, protocols.get(device_name))
+                        if psec.valid else None)
+    process = sec.opt("process", s.choice(PROCESSES), "self-regulating")
+    kp = sec.opt("kp", _kp, None)
+    delay = sec.opt("delay_s", s.number(non_negative=True), 0.0)
+    window = sec.opt("window_s", s.number(positive=True), 7200.0)
+    op_range = sec.opt("op_range", s.number_pair, (0.0, 100.0))
+    result_address = sec.req("result_address",
+                             s.integer(0, 65536 - RESULT_BLOCK_SIZE))
+    result_unit_id = sec.opt("result_unit_id", s.integer(1, MAX_RESULT_UNIT_ID), default_unit)
+    if device is not None and window is not MISSING \
+            and window / device.poll_interval_s < MIN_WINDOW_SAMPLES:
+        sec.error("window_s", f"must hold at least {MIN_WINDOW_SAMPLES} samples of device "
+                  f"{device.name} (poll_interval_s {device.poll_interval_s:g})")
+        window = MISSING
+    values = (name, device_name, process, kp, delay, window, op_range, result_address,
+              result_unit_id)
+    if MISSING in values or device is None or None in points.values():
+        return None
+    op, pv = points["op"], points["pv"]
+    assert op is not None
+    assert pv is not None
+    return LoopConfig(name=name, device=device_name, op=op, pv=pv,
+                      result_address=result_address, process=process, kp=kp,
+                      delay_s=delay, window_s=window, op_range=op_range,
+                      result_unit_id=result_unit_id)
+
+
+def _kp(value: Any) -> float | None:
+    if value is None:
+        return None
+    out = s.number()(value)
+    if out == 0.0:
+        raise ValueError("must not be 0")
+    return out
+
+
+def _check_result_blocks(problems: Problems, blocks: list[tuple[str, int, int]],
+                         default_unit: Any) -> None:
+    """Within each result unit id, a loop's block must not overlap another's (reported
+    once per pair of neighbours in address order); the same address on two unit ids is
+    fine."""
+    n = RESULT_BLOCK_SIZE - 1
+    for name, unit, a, other, oa in overlapping_blocks(blocks):
+        where = "" if unit == default_unit else f" on result unit id {unit}"
+        problems.add(f"loop {name}", "result_address",
+                     f"block {a}..{a + n} overlaps loop {other} ({oa}..{oa + n}){where}")

@@ -1,0 +1,115 @@
+"""The gateway configuration as frozen dataclasses (what :mod:`gateway.config.load` returns).
+
+Every value has its documented default (docs/configuration.md); protocol-specific device
+and point settings are the protocol plugin's own frozen dataclasses (``options`` and
+``address``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+__all__ = [
+    "MIN_WINDOW_SAMPLES",
+    "PROCESSES",
+    "WORD_ORDERS",
+    "Config",
+    "DeviceConfig",
+    "GatewaySettings",
+    "LoopConfig",
+    "MetricsSettings",
+    "PointConfig",
+    "ResultServerSettings",
+]
+
+MIN_WINDOW_SAMPLES = 16
+PROCESSES = ("self-regulating", "integrating")
+WORD_ORDERS = ("big", "little")
+
+
+@dataclasses.dataclass(frozen=True)
+class GatewaySettings:
+    analysis_interval_s: float = 300.0  # process seconds between analyses of a loop
+    time_scale: float = 1.0  # process seconds per wall second (>1 only for simulation)
+    state_file: str = "state/gateway.state"
+    analysis_workers: int = 0  # worker processes; 0 = one per core less one (at least 1)
+    persist_interval_s: float = 300.0  # wall seconds between state-file writes (and at exit)
+    reconnect_max_s: float = 30.0  # wall seconds, cap of the jittered reconnect backoff
+
+
+@dataclasses.dataclass(frozen=True)
+class MetricsSettings:
+    listen: tuple[str, int] = ("127.0.0.1", 9108)
+
+
+@dataclasses.dataclass(frozen=True)
+class ResultServerSettings:
+    listen: tuple[str, int] = ("127.0.0.1", 5020)
+    unit_id: int = 1
+    word_order: str = "big"
+
+
+@dataclasses.dataclass(frozen=True)
+class DeviceConfig:
+    """One device (one connection). ``options`` is the protocol plugin's own frozen
+    dataclass (e.g. :class:`gateway.inputs.modbus.config.ModbusDeviceOptions`)."""
+
+    name: str
+    protocol: str
+    poll_interval_s: float  # also the sample time Ts of its loops, in process seconds
+    timeout_s: float
+    options: Any
+
+
+@dataclasses.dataclass(frozen=True)
+class PointConfig:
+    """One value of a loop: ``address`` is the protocol plugin's own point type (e.g.
+    `gateway.inputs.modbus.config.ModbusPoint`); engineering value = raw*scale + offset."""
+
+    address: Any
+    scale: float = 1.0
+    offset: float = 0.0
+    range: tuple[float, float] | None = None  # plausible engineering values; outside -> BAD
+
+
+@dataclasses.dataclass(frozen=True)
+class LoopConfig:
+    name: str
+    device: str
+    op: PointConfig  # OP in % of valve span (after scale/offset)
+    pv: PointConfig
+    result_address: int
+    process: str = "self-regulating"
+    kp: float | None = None
+    delay_s: float = 0.0
+    window_s: float = 7200.0
+    op_range: tuple[float, float] = (0.0, 100.0)
+    # unit id of the result block; None: modbus_server.unit_id (load_config always fills
+    # it in). Not in repr: like result_address it does not change what the loop's
+    # assessment means (state.result_signature), and state files stay compatible.
+    result_unit_id: int | None = dataclasses.field(default=None, repr=False)
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    source: str
+    devices: tuple[DeviceConfig, ...]
+    loops: tuple[LoopConfig, ...]
+    gateway: GatewaySettings = GatewaySettings()
+    metrics: MetricsSettings = MetricsSettings()
+    modbus_server: ResultServerSettings = ResultServerSettings()
+
+    def device(self, name: str) -> DeviceConfig:
+        for dev in self.devices:
+            if dev.name == name:
+                return dev
+        raise KeyError(name)
+
+    def loops_of(self, device: str) -> tuple[LoopConfig, ...]:
+        return tuple(lp for lp in self.loops if lp.device == device)
+
+    def window_samples(self, loop: LoopConfig) -> int:
+        """Ring-buffer length of a loop: window_s / poll_interval_s samples."""
+        return max(MIN_WINDOW_SAMPLES,
+                   round(loop.window_s / self.device(loop.device).poll_interval_s))

@@ -1,0 +1,107 @@
+"""The one in-memory result store: the latest :class:`stiction.Assessment` per loop.
+
+Every output (Modbus result registers, Prometheus metrics, the state file) is a view of this
+store; nothing computes a result twice. Per loop it also keeps the latest OP/PV sample and
+whether the loop is stale (no fresh samples), as numpy arrays indexed by the loop's position
+in the config.
+
+Subscribers (``store.subscribe(fn)``) are called with the loop index after each change of a
+loop's assessment or stale flag, on the event loop thread. Readers on other threads (the
+metrics HTTP server) take a :meth:`ResultStore.snapshot`, an immutable copy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from stiction import Assessment
+
+__all__ = ["LoopResult", "ResultStore", "StoreSnapshot", "verdict_name"]
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class LoopResult:
+    """One loop's latest assessment with its bookkeeping."""
+
+    assessment: Assessment
+    seq: int  # 1, 2, ... per loop (the register wraps at 65536)
+    t: float  # wall-clock Unix seconds of the assessment
+    window_fill: float  # fraction 0-1 of the window holding good samples
+    samples: int  # samples the analysis used
+
+
+class ResultStore:
+    """Latest result, latest sample and stale flag of every configured loop."""
+
+    def __init__(self, loops: Sequence[str]) -> None:
+        self.loops = tuple(loops)
+        self.index = {name: i for i, name in enumerate(self.loops)}
+        n = len(self.loops)
+        self.results: list[LoopResult | None] = [None] * n
+        self.latest_op: NDArray[np.float64] = np.full(n, np.nan)
+        self.latest_pv: NDArray[np.float64] = np.full(n, np.nan)
+        self.stale = np.zeros(n, dtype=bool)
+        self._subscribers: list[Callable[[int], None]] = []
+
+    def subscribe(self, fn: Callable[[int], None]) -> None:
+        self._subscribers.append(fn)
+
+    def _notify(self, i: int) -> None:
+        for fn in self._subscribers:
+            fn(i)
+
+    def set_result(self, i: int, assessment: Assessment, *, t: float, window_fill: float,
+                   samples: int) -> LoopResult:
+        prev = self.results[i]
+        res = LoopResult(assessment, (prev.seq + 1) if prev else 1, t, window_fill, samples)
+        self.results[i] = res
+        self._notify(i)
+        return res
+
+    def restore_result(self, i: int, result: LoopResult) -> None:
+        """Put back a result as it was (sequence number included), e.g. from the state file
+        or the previous config on reload."""
+        self.results[i] = result
+        self._notify(i)
+
+    def set_stale(self, rows: NDArray[np.intp], stale: NDArray[np.bool_] | bool) -> None:
+        """Set the stale flag of loops ``rows``; subscribers hear of those that changed."""
+        new = np.broadcast_to(np.asarray(stale, dtype=bool), rows.shape)
+        changed = rows[self.stale[rows] != new]
+        self.stale[rows] = new
+        for i in changed:
+            self._notify(int(i))
+
+    def verdict_name(self, i: int) -> str:
+        return verdict_name(self.results[i], bool(self.stale[i]))
+
+    def snapshot(self) -> StoreSnapshot:
+        """An immutable copy of everything a reader needs (cheap: the results are shared,
+        the arrays copied)."""
+        return StoreSnapshot(self.loops, tuple(self.results), self.latest_op.copy(),
+                             self.latest_pv.copy(), self.stale.copy())
+
+
+@dataclasses.dataclass(frozen=True)
+class StoreSnapshot:
+    """The store at one moment, safe to read from another thread."""
+
+    loops: tuple[str, ...]
+    results: tuple[LoopResult | None, ...]
+    latest_op: NDArray[np.float64]
+    latest_pv: NDArray[np.float64]
+    stale: NDArray[np.bool_]
+
+    def verdict_name(self, i: int) -> str:
+        return verdict_name(self.results[i], bool(self.stale[i]))
+
+
+def verdict_name(result: LoopResult | None, stale: bool = False) -> str:
+    """``stale``, ``none`` (no assessment yet) or the assessment's verdict."""
+    if stale:
+        return "stale"
+    return "none" if result is None else str(result.assessment.verdict)

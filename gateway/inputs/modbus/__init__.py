@@ -1,0 +1,25 @@
+"""Modbus TCP input plugin (``protocol: modbus``): config keys, request plan, client.
+
+``config`` reads the device and point keys, ``plan`` coalesces the points into the fewest
+read requests, ``client`` is the :class:`~gateway.inputs.base.Source`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+from ...core.points import PointSpec
+from .client import ModbusInput
+from .config import ModbusDeviceOptions, ModbusPoint, parse_device, parse_point
+from .plan import ReadRequest, plan_requests
+
+if TYPE_CHECKING:
+    from ...config import DeviceConfig
+
+__all__ = ["ModbusDeviceOptions", "ModbusInput", "ModbusPoint", "ReadRequest", "create_input",
+           "parse_device", "parse_point", "plan_requests"]
+
+
+def create_input(device: DeviceConfig, points: Sequence[PointSpec], **_: Any) -> ModbusInput:
+    return ModbusInput(device.name, device.options, points, timeout_s=device.timeout_s)

@@ -1,0 +1,79 @@
+"""DataValues to raw values and qualities (one per point), and one log line per change of a
+point's status:
+
+=======================  ===========================================================
+status / value           sample
+=======================  ===========================================================
+Good, finite number      the value, ``Quality.GOOD`` (scaled later, in core.points)
+Uncertain                NaN, ``Quality.UNCERTAIN`` (a gap: analysis never uses it)
+Bad (incl. a node that   NaN, ``Quality.BAD``; the device's other points go on
+does not exist)
+Good but not a finite    NaN, ``Quality.BAD`` (a string, an array, a boolean, NaN...)
+number
+=======================  ===========================================================
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+import numpy as np
+from asyncua import ua
+from asyncua.ua.status_codes import StatusCodes
+from numpy.typing import NDArray
+
+from ...core.points import PointSpec, Quality
+from .errors import status_name
+
+__all__ = ["StatusLog", "convert"]
+
+_log = logging.getLogger("gateway.inputs.opcua")
+
+
+def convert(results: Sequence[ua.DataValue], read_index: Sequence[int], n: int
+            ) -> tuple[NDArray[np.float64], NDArray[np.uint8], NDArray[np.uint32]]:
+    """Raw values, qualities and status codes of ``n`` points from the DataValues read for
+    the points ``read_index`` (points not read: BAD, BadNodeIdUnknown)."""
+    raw = np.full(n, np.nan)
+    quality = np.full(n, Quality.BAD, dtype=np.uint8)
+    status = np.full(n, StatusCodes.BadNodeIdUnknown, dtype=np.uint32)
+    for i, dv in zip(read_index, results, strict=True):
+        code = dv.StatusCode.value if dv.StatusCode is not None else 0
+        status[i] = code
+        if code & 0x80000000:  # Bad
+            continue
+        if code & 0x40000000:  # Uncertain: a gap, with its own quality
+            quality[i] = Quality.UNCERTAIN
+            continue
+        value = dv.Value.Value if dv.Value is not None else None
+        if isinstance(value, int | float | np.number) and not isinstance(value, bool):
+            x = float(value)
+            if np.isfinite(x):
+                raw[i] = x
+                quality[i] = Quality.GOOD
+                continue
+        status[i] = StatusCodes.BadTypeMismatch  # for the log: not a usable number
+    return raw, quality, status
+
+
+class StatusLog:
+    """Logs a point when its status turns uncertain or bad, and when it is good again."""
+
+    def __init__(self, device: str, points: Sequence[PointSpec],
+                 node_ids: Sequence[ua.NodeId]) -> None:
+        self.device = device
+        self.points = points
+        self.node_ids = node_ids
+        self.status = np.zeros(len(points), dtype=np.uint32)
+
+    def update(self, status: NDArray[np.uint32]) -> None:
+        for i in np.flatnonzero(status != self.status).tolist():
+            p, code = self.points[i], int(status[i])
+            if code & 0xC0000000:
+                _log.warning("OPC UA device %s: loop %s %s (%s): %s", self.device, p.loop,
+                             p.role, self.node_ids[i].to_string(), status_name(code))
+            elif self.status[i] & 0xC0000000:
+                _log.info("OPC UA device %s: loop %s %s good again", self.device, p.loop,
+                          p.role)
+        self.status = status

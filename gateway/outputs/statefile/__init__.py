@@ -1,0 +1,100 @@
+"""State file output (``gateway.state_file``): windows and latest assessments survive a
+restart. :mod:`.format` writes and reads the file, :mod:`.restore` puts it back.
+
+The sink restores the file when it starts (before any poll), writes it every
+``gateway.persist_interval_s`` (a failing write is logged once, and once when it works
+again: a full disk must not stop the gateway) and once more when it stops.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Callable
+from typing import Any
+
+from ..base import Binding
+from .format import read_state, snapshot, write_state
+from .restore import RestoreReport, restore_state
+
+__all__ = ["RestoreReport", "StateFile", "create_sink", "read_state", "restore_state"]
+
+log = logging.getLogger("gateway.state")
+
+
+def create_sink(binding: Binding, **_: Any) -> StateFile:
+    return StateFile(binding)
+
+
+class StateFile:
+    """Restores on :meth:`start`, writes periodically and on :meth:`stop`."""
+
+    def __init__(self, binding: Binding, *, wall: Callable[[], float] = time.time) -> None:
+        self.binding = binding
+        self.wall = wall
+        self.saves = 0
+        self.last_save_s = 0.0  # wall time the last write took
+        self.report: RestoreReport | None = None
+        self._lock = asyncio.Lock()
+        self._task: asyncio.Task[None] | None = None
+
+    @property
+    def path(self) -> str:
+        return self.binding.config.gateway.state_file
+
+    async def bind(self, binding: Binding) -> None:
+        if binding.config.gateway.state_file != self.path:
+            log.warning("reload: state is written to %s from now on (not restored)",
+                        binding.config.gateway.state_file)
+        self.binding = binding
+
+    async def start(self) -> None:
+        b = self.binding
+        self.report = restore_state(self.path, b.config, b.groups, b.store, wall=self.wall(),
+                                    time_scale=b.clock.time_scale)
+        self._task = asyncio.create_task(self._persist(), name="persist")
+
+    async def save(self) -> int:
+        """Write the state file now (atomically); returns its size in bytes."""
+        async with self._lock:
+            b = self.binding
+            wall = self.wall()
+            header, arrays = snapshot(b.config, b.groups, b.store, wall=wall,
+                                      proc=b.clock.now(wall))
+            t0 = time.perf_counter()
+            size = await asyncio.to_thread(write_state, self.path, header, arrays)
+            self.last_save_s = time.perf_counter() - t0
+            self.saves += 1
+            log.debug("state file %s: %d bytes in %.3f s", self.path, size, self.last_save_s)
+            return size
+
+    async def _persist(self) -> None:
+        failing = False
+        while True:
+            interval = self.binding.config.gateway.persist_interval_s
+            await asyncio.sleep(interval)
+            try:
+                await self.save()
+            except Exception as exc:  # a full disk must not stop the gateway
+                if not failing:
+                    log.error("state file %s: write failed: %s (retrying every %g s)",
+                              self.path, exc, interval)
+                failing = True
+            else:
+                if failing:
+                    log.warning("state file %s: writing again", self.path)
+                failing = False
+
+    async def stop(self) -> None:
+        if self._task is None:
+            return  # never started: nothing restored, nothing to write over the old file
+        self._task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await self._task
+        self._task = None
+        try:
+            await self.save()
+        except Exception:
+            log.exception("state file: final write failed")

@@ -1,0 +1,297 @@
+"""The gateway process: assembles config → sources → windows → analysis → store → sinks.
+
+``Gateway(config)`` is an async context manager: entering starts the analysis workers, binds
+and starts the sinks (the state file is restored first, when ``persist``), then one polling
+task per device and the analysis task; leaving stops the pollers, stops the sinks (the state
+file is written last), closes the sources and the workers.
+
+:meth:`Gateway.reload` applies a new config while running (SIGHUP): the carry-over is
+:func:`gateway.runtime.reload.build_runtime`; devices that stay keep their poll schedule, and
+every sink is bound to the new runtime. A config that does not validate, or whose runtime
+cannot be built, is refused and the running one kept.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+import time
+from collections.abc import Callable, Coroutine, Iterable, Sequence
+from concurrent.futures import Executor
+from types import TracebackType
+from typing import Any
+
+from prometheus_client import CollectorRegistry
+
+from ..config import Config, load_config
+from ..config.plugins import output_plugin
+from ..core.store import ResultStore
+from ..errors import ConfigError
+from ..inputs.base import Source
+from ..outputs.base import Binding, Sink
+from ..outputs.prometheus import GatewayMetrics
+from .poller import Clocks, DevicePoller
+from .reload import build_runtime
+from .scheduler import DEFAULT_ANALYZE, AnalysisScheduler
+
+__all__ = ["Gateway"]
+
+log = logging.getLogger("gateway.app")
+
+
+class Gateway:
+    """One running gateway for ``config``; see the module docstring.
+
+    ``persist`` adds the state-file output (``stiction-gateway run`` sets it); ``outputs``
+    names further outputs of :data:`gateway.config.plugins.OUTPUTS` (e.g. ``memory``).
+    ``executor`` replaces the analysis process pool (tests: one thread); ``clocks`` the
+    pollers' clocks."""
+
+    def __init__(self, config: Config, *, registry: CollectorRegistry | None = None,
+                 analyze: str = DEFAULT_ANALYZE, serve_http: bool = True,
+                 batch_size: int = 64, persist: bool = False, outputs: Sequence[str] = (),
+                 executor: Callable[[], Executor] | None = None,
+                 clocks: Clocks | None = None) -> None:
+        self.registry = registry if registry is not None else CollectorRegistry()
+        self.metrics = GatewayMetrics(self.registry)
+        self.clocks = clocks
+        self._phase_ref: float | None = None
+        self.runtime = build_runtime(config, wall=self._wall(), metrics=self.metrics,
+                                     clocks=clocks)
+        names = [*(["statefile"] if persist else []), "modbus_server", "prometheus", *outputs]
+        self.sinks = create_sinks(names, self.runtime.binding(), registry=self.registry,
+                                  metrics=self.metrics, serve_http=serve_http)
+        g = config.gateway
+        self.scheduler = AnalysisScheduler(
+            self.runtime.groups, self.runtime.store,
+            interval_wall_s=g.analysis_interval_s / g.time_scale, workers=g.analysis_workers,
+            batch_size=batch_size, analyze=analyze, executor=executor,
+            on_duration=self.metrics.analysis_duration.observe)
+        self.reloads = 0
+        self.polling = asyncio.Event()  # set once every poller has completed a tick
+        self._polls = PollTasks()
+        self._tasks: list[asyncio.Task[Any]] = []
+        self._reload_lock = asyncio.Lock()
+
+    def _wall(self) -> float:
+        return self.clocks.wall() if self.clocks is not None else time.time()
+
+    # ------------------------------------------------------------------ views
+
+    @property
+    def config(self) -> Config:
+        return self.runtime.config
+
+    @property
+    def store(self) -> ResultStore:
+        return self.runtime.store
+
+    @property
+    def pollers(self) -> list[DevicePoller]:
+        return self.runtime.pollers
+
+    @property
+    def result_server(self) -> Any:
+        return self.sinks["modbus_server"]
+
+    @property
+    def result_port(self) -> int:
+        return int(self.result_server.port)
+
+    @property
+    def metrics_port(self) -> int | None:
+        port: int | None = getattr(self.sinks["prometheus"], "port", None)
+        return port
+
+    def align_polls(self, phase_ref: float) -> None:
+        """Poll on the grid ``phase_ref + n * period`` (loop.time() seconds) instead of
+        from start-up. The demo and tests set it half a step after the simulated PLC's
+        steps, so that at high ``time_scale`` every simulated sample is read exactly once.
+        Devices added by a reload follow the same grid."""
+        self._phase_ref = phase_ref
+        for p in self.pollers:
+            p.grid = type(p.grid)(p.period, phase_ref)
+
+    # ------------------------------------------------------------------ life cycle
+
+    async def __aenter__(self) -> Gateway:
+        try:  # sinks first: the state file is restored before anything else takes time
+            binding = self.runtime.binding()
+            for sink in self.sinks.values():
+                await sink.bind(binding)
+                await sink.start()
+            await self.scheduler.start()
+        except BaseException:
+            await self._close()
+            raise
+        self._polls.start(self.runtime.pollers, {})
+        self._spawn(self.scheduler.run(), "analysis")
+        self._spawn(self._watch_first_ticks(), "first ticks")
+        return self
+
+    async def __aexit__(self, exc_type: type[BaseException] | None,
+                        exc: BaseException | None, tb: TracebackType | None) -> None:
+        await self._close()
+
+    def _spawn(self, coro: Coroutine[Any, Any, Any], name: str) -> asyncio.Task[Any]:
+        task = asyncio.create_task(coro, name=name)
+        task.add_done_callback(_log_failure)
+        self._tasks.append(task)
+        return task
+
+    async def _watch_first_ticks(self) -> None:
+        await asyncio.gather(*(p.first_tick.wait() for p in self.pollers))
+        self.polling.set()
+
+    async def _close(self) -> None:
+        for t in self._tasks:
+            t.cancel()
+        if self._tasks:
+            _done, pending = await asyncio.wait(self._tasks, timeout=2.0)
+            for t in pending:
+                log.error("task %s did not stop; abandoned", t.get_name())
+        self._tasks.clear()
+        await self._polls.stop(self.runtime.pollers)
+        for sink in self.sinks.values():  # pollers stopped: the state file has every sample
+            with contextlib.suppress(Exception):
+                await sink.stop()
+        for source in self.runtime.sources.values():
+            with contextlib.suppress(Exception):
+                await source.close()
+        await self.scheduler.stop()
+
+    # ------------------------------------------------------------------ state, reload
+
+    @property
+    def saves(self) -> int:
+        return int(getattr(self.sinks.get("statefile"), "saves", 0))
+
+    async def save_state(self) -> int:
+        """Write the state file now (with ``persist``); returns its size in bytes."""
+        size: int = await self.sinks["statefile"].save()  # type: ignore[attr-defined]
+        return size
+
+    async def reload(self, source: str | os.PathLike[str] | Config) -> bool:
+        """Apply a new config (a path or a parsed Config). False, with the reasons logged,
+        if it does not validate or cannot be built: the running config stays in force."""
+        async with self._reload_lock:
+            if isinstance(source, Config):
+                config = source
+            else:
+                try:  # parsed in a thread: a big YAML file takes a while, polls go on
+                    config = await asyncio.to_thread(load_config, source)
+                except ConfigError as exc:
+                    log.error("reload refused, keeping the running config: %d problem(s) "
+                              "in %s:\n  %s", len(exc.problems), source,
+                              "\n  ".join(exc.problems))
+                    return False
+            if not await self._apply(config):
+                return False
+            self.reloads += 1
+            return True
+
+    async def _apply(self, config: Config) -> bool:
+        old = self.runtime
+        if config.gateway.analysis_workers != old.config.gateway.analysis_workers:
+            log.warning("reload: gateway.analysis_workers takes effect at the next restart")
+        due = await self._polls.stop(old.pollers)
+        try:
+            new = build_runtime(config, old, wall=self._wall(), metrics=self.metrics,
+                                phase_ref=self._phase_ref, clocks=self.clocks)
+        except Exception:  # e.g. a source that cannot be built: keep the running config
+            log.exception("reload failed, keeping the running config")
+            for p in old.pollers:
+                p.resume()
+            self._polls.start(old.pollers, due)
+            return False
+        await _close_unused(old.sources.values(), new.sources.values())
+        self.runtime = new
+        binding = new.binding()
+        for sink in self.sinks.values():
+            await sink.bind(binding)
+        g = config.gateway
+        self.scheduler.groups, self.scheduler.store = list(new.groups), new.store
+        self.scheduler.interval_wall_s = g.analysis_interval_s / g.time_scale
+        # devices that stay keep their schedule (and their connection if their points are
+        # unchanged); new devices start now
+        self._polls.start(new.pollers, {n: d for n, d in due.items() if n in new.sources})
+        old_loops, new_loops = set(old.store.index), set(new.store.index)
+        kept = sum(1 for grp in new.groups for lc in grp.configs
+                   if lc.name in old_loops and grp.bank.count > 0)
+        log.info("reloaded %s: %d devices, %d loops (%d added, %d removed, %d windows kept)",
+                 config.source, len(config.devices), len(config.loops),
+                 len(new_loops - old_loops), len(old_loops - new_loops), kept)
+        return True
+
+    # ------------------------------------------------------------------ health
+
+    def stalled_pollers(self, now: float | None = None) -> list[str]:
+        now = asyncio.get_running_loop().time() if now is None else now
+        return [p.device.name for p in self.pollers if p.stalled(now)]
+
+    def status_text(self) -> str:
+        up = sum(1 for p in self.pollers if p.up)
+        stale = int(self.store.stale.sum())
+        return (f"polling {len(self.pollers)} devices ({up} up), {len(self.store.loops)} "
+                f"loops ({stale} stale)")
+
+
+def create_sinks(names: Sequence[str], binding: Binding, **options: Any) -> dict[str, Sink]:
+    """The outputs ``names`` (registered in :data:`gateway.config.plugins.OUTPUTS`)."""
+    sinks: dict[str, Sink] = {}
+    for name in names:
+        plugin = output_plugin(name)
+        if plugin is None:
+            raise ValueError(f"unknown output {name!r}")
+        sinks[name] = plugin.create_sink(binding, **options)
+    return sinks
+
+
+async def _close_unused(old: Iterable[Source], new: Iterable[Source]) -> None:
+    """Close the old sources a reload did not keep."""
+    kept = {id(s) for s in new}
+    for s in old:
+        if id(s) not in kept:
+            with contextlib.suppress(Exception):
+                await s.close()
+
+
+class PollTasks:
+    """One task per poller. Stopping asks rather than cancels: cancelling a task inside a
+    pymodbus request can leave it waiting forever, so a task that does not stop in time
+    is cancelled, then abandoned."""
+
+    def __init__(self) -> None:
+        self.tasks: dict[str, asyncio.Task[None]] = {}
+
+    def start(self, pollers: Sequence[DevicePoller], due: dict[str, float | None]) -> None:
+        """Run each poller, from its ``due`` time if given (a reload keeps schedules)."""
+        for p in pollers:
+            task = asyncio.create_task(p.run(due.get(p.device.name)),
+                                       name=f"poll {p.device.name}")
+            task.add_done_callback(_log_failure)
+            self.tasks[p.device.name] = task
+
+    async def stop(self, pollers: Sequence[DevicePoller]) -> dict[str, float | None]:
+        """Stop every poller after its current tick; returns each one's next due time."""
+        for p in pollers:
+            p.request_stop()
+        tasks = list(self.tasks.values())
+        self.tasks.clear()
+        if tasks:
+            limit = max(p.guard_s for p in pollers) + 1.0
+            _done, pending = await asyncio.wait(tasks, timeout=limit)
+            for t in pending:
+                t.cancel()
+            if pending:  # a cancelled pymodbus request may never return: do not wait on it
+                _done, pending = await asyncio.wait(pending, timeout=1.0)
+            for t in pending:
+                log.error("task %s did not stop; abandoned", t.get_name())
+        return {p.device.name: p.next_due for p in pollers}
+
+
+def _log_failure(task: asyncio.Task[Any]) -> None:
+    if not task.cancelled() and task.exception() is not None:
+        log.error("task %s failed", task.get_name(), exc_info=task.exception())

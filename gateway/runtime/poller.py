@@ -1,0 +1,256 @@
+"""One polling task per device: the asyncio shell around the rules of :mod:`gateway.core`.
+
+:meth:`DevicePoller.run` keeps the absolute tick schedule (:class:`~gateway.core.ticks.TickGrid`;
+ticks missed because a poll overran become gap rows, counted in ``missed_ticks``) and calls
+:meth:`DevicePoller.tick`, which reads the clocks once and does one poll: (re)connect when
+the :class:`~gateway.core.ticks.Link` allows it, read under a hard time limit, turn raw
+values into engineering values (:class:`~gateway.core.points.PointTable`), append one sample
+per loop to the windows and update the stale flags. A failed read appends a gap (NaN,
+NO_COMM), never a zero.
+
+The poller is the one owner of reconnecting: a device that cannot be reached, drops the
+connection or stops answering is closed and tried again forever with capped, full-jitter
+exponential backoff (cap ``gateway.reconnect_max_s``, longer after a refused login), reset
+only by a successful read. One log line when a device goes down, one when it recovers; the
+same for a failing block (e.g. a Modbus exception) and for the set of implausible points.
+
+Each completed tick updates :attr:`DevicePoller.last_progress`; the systemd watchdog only
+pings while every poller keeps making progress (:meth:`DevicePoller.stalled`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import logging
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ..config.model import DeviceConfig
+from ..core.points import PointSpec, PointTable, Quality
+from ..core.store import ResultStore
+from ..core.ticks import Backoff, Link, ProcessClock, SetTracker, StaleTracker, TickGrid, stalled
+from ..core.windows import LoopGroup, record
+from ..errors import DeviceError
+from ..inputs.base import ReadResult, Source
+from ..outputs.prometheus import GatewayMetrics
+
+__all__ = ["BACKOFF_BASE_S", "Clocks", "DevicePoller"]
+
+log = logging.getLogger("gateway.poller")
+
+BACKOFF_BASE_S = 0.5
+
+
+@dataclasses.dataclass(frozen=True)
+class Clocks:
+    """Where a poller reads the time: ``mono`` (the event loop's clock, for schedules and
+    backoff), ``wall`` (Unix seconds, for samples) and ``perf`` (durations). Tests pass
+    their own."""
+
+    mono: Callable[[], float]
+    wall: Callable[[], float] = time.time
+    perf: Callable[[], float] = time.perf_counter
+
+
+class DevicePoller:
+    def __init__(self, device: DeviceConfig, source: Source, groups: Sequence[LoopGroup],
+                 points: Sequence[PointSpec], *, store: ResultStore,
+                 metrics: GatewayMetrics | None, clock: ProcessClock,
+                 backoff: Backoff | None = None, clocks: Clocks | None = None) -> None:
+        self.device = device
+        self.source = source
+        self.groups = list(groups)
+        self.store = store
+        self.metrics = metrics
+        self.clock = clock
+        self.clocks = clocks
+        self.period = device.poll_interval_s / clock.time_scale
+        self.grid = TickGrid(self.period)
+        self.table = PointTable(points)
+        self.loops = (np.concatenate([g.rows for g in self.groups]) if self.groups
+                      else np.zeros(0, dtype=np.intp))
+        self.link = Link(backoff or Backoff(BACKOFF_BASE_S, 2.0, 30.0))
+        self.stale = StaleTracker(len(self.loops))
+        self.blocks = SetTracker()  # failing blocks ("holding 100+4")
+        self.bad = SetTracker()  # points with implausible values
+        # a hard limit on one connect or read, whatever the source does with its timeout
+        self.guard_s = 10.0 * device.timeout_s + 1.0
+        self.connected = False
+        self.polls = self.good_polls = self.missed_ticks = 0
+        self.reconnects = 0  # successful connects after the first
+        self._connects = 0
+        self.tick_starts: list[float] = []  # clocks.mono() of recent tick starts (jitter)
+        self.last_progress: float | None = None  # clocks.mono() when the last tick ended
+        self.next_due: float | None = None  # clocks.mono() of the next tick (for hand-over)
+        self._stop = asyncio.Event()
+        self.first_tick = asyncio.Event()  # set when the first tick has completed
+
+    @property
+    def up(self) -> bool | None:
+        return self.link.up
+
+    @property
+    def backoff(self) -> Backoff:
+        return self.link.backoff
+
+    def take_over(self, old: DevicePoller) -> None:
+        """Continue ``old``'s connection state (same device, same source) after a reload."""
+        self.connected, self.link, self.blocks = old.connected, old.link, old.blocks
+        self._connects = old._connects
+
+    def request_stop(self) -> None:
+        """Make :meth:`run` return after the current tick (or at once while it sleeps).
+
+        Shutdown and reload ask rather than cancel: cancelling a task inside a pymodbus
+        request can leave it waiting forever (seen with pymodbus 3.16 on Python 3.11)."""
+        self._stop.set()
+
+    def resume(self) -> None:
+        """Undo :meth:`request_stop` so :meth:`run` can be started again."""
+        self._stop.clear()
+
+    def stalled(self, now: float) -> bool:
+        return stalled(now, self.last_progress, self.period, self.guard_s)
+
+    def _mono(self) -> Callable[[], float]:
+        if self.clocks is None:
+            self.clocks = Clocks(asyncio.get_running_loop().time)
+        return self.clocks.mono
+
+    async def run(self, due: float | None = None) -> None:
+        """Poll until :meth:`request_stop`; ``due`` is the loop time of the first tick
+        (default: now, or the grid's next tick), so a reload keeps its predecessor's
+        schedule. The source is not closed here: its owner closes it (it may outlive a
+        reload)."""
+        mono = self._mono()
+        if due is None:
+            due = self.grid.first_due(mono())
+        self.last_progress = mono()
+        while not self._stop.is_set():
+            self.next_due = due
+            delay = due - mono()
+            if delay > 0:
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self._stop.wait(), delay)
+                if self._stop.is_set():
+                    break
+            missed, due = self.grid.catch_up(due, mono())
+            self.missed_ticks += missed
+            for _ in range(min(missed, self._max_rows())):  # gap rows keep time order
+                self._gap(self.clock.now(self.clocks.wall()))  # type: ignore[union-attr]
+            try:
+                await self.tick()
+            except Exception:  # a bug in one tick must not end polling for months
+                log.exception("device %s: poll failed unexpectedly", self.device.name)
+                await self._disconnect()
+            self.last_progress = mono()
+            self.first_tick.set()
+            due += self.period
+        self.next_due = due
+
+    def _max_rows(self) -> int:
+        return max((g.bank.size for g in self.groups), default=0)
+
+    async def _disconnect(self) -> None:
+        self.connected = False
+        with contextlib.suppress(Exception):
+            await self.source.close()
+
+    # ------------------------------------------------------------------ one tick
+
+    async def tick(self) -> None:
+        """One poll: (re)connect if due, read, append one sample per loop."""
+        mono = self._mono()
+        clocks = self.clocks
+        assert clocks is not None
+        self.tick_starts.append(mono())
+        if len(self.tick_starts) > 4096:
+            del self.tick_starts[:2048]
+        t_proc = self.clock.now(clocks.wall())
+        self.polls += 1
+        if not self.connected:
+            if not self.link.may_connect(mono()):
+                self._gap(t_proc)
+                return
+            try:
+                async with asyncio.timeout(self.guard_s):
+                    await self.source.connect()
+            except (DeviceError, TimeoutError) as exc:
+                self._failed(exc, "connect")
+                await self._disconnect()
+                self._gap(t_proc)
+                return
+            self.connected = True
+            self._connects += 1
+            if self._connects > 1:
+                self.reconnects += 1
+        t0 = clocks.perf()
+        try:
+            async with asyncio.timeout(self.guard_s):
+                result = await self.source.read()
+        except (DeviceError, TimeoutError) as exc:
+            self._failed(exc, "read")
+            await self._disconnect()
+            self._gap(t_proc)
+            return
+        self._answered(result, clocks.perf() - t0)
+        values, quality = self.table.engineering(result.values, result.quality)
+        self._note_bad(quality)
+        self._append(t_proc, values, quality)
+
+    def _failed(self, exc: DeviceError | TimeoutError, what: str) -> None:
+        name = self.device.name
+        err = exc if isinstance(exc, DeviceError) else DeviceError(
+            name, "timeout", f"{what} took over {self.guard_s:g} s")
+        if self.metrics is not None:
+            self.metrics.poll_errors.labels(device=name, kind=err.kind).inc()
+            self.metrics.device_up.labels(device=name).set(0)
+        if self.link.failed(err.kind, self._mono()()):
+            log.warning("device %s: down (%s): %s; retrying with backoff up to %g s",
+                        name, err.kind, err, self.link.backoff.cap_for(err.kind))
+
+    def _answered(self, result: ReadResult, seconds: float) -> None:
+        name = self.device.name
+        if self.metrics is not None:
+            self.metrics.poll_duration.labels(device=name).observe(seconds)
+            self.metrics.poll_requests.labels(device=name).inc(result.requests)
+            for block_err in result.errors:
+                self.metrics.poll_errors.labels(device=name, kind=block_err.kind).inc()
+        messages = {_block_key(e): str(e) for e in result.errors}
+        came, went = self.blocks.update(messages)
+        for key in came:
+            log.warning("%s; its points are gaps until it answers", messages[str(key)])
+        for key in went:
+            log.warning("device %s: %s answering again", name, key)
+        before = self.link.answered()
+        if before is False:
+            log.warning("device %s: recovered", name)
+        if before is not True and self.metrics is not None:
+            self.metrics.device_up.labels(device=name).set(1)
+        self.good_polls += 1
+
+    def _note_bad(self, quality: np.ndarray) -> None:
+        came, went = self.bad.update(np.flatnonzero(quality == Quality.BAD).tolist())
+        if not came and not went:
+            return
+        if self.bad.members:
+            log.warning("device %s: bad values (NaN, inf, subnormal or out of range) at %s",
+                        self.device.name, self.table.names(self.bad.members))  # type: ignore[arg-type]
+        else:
+            log.warning("device %s: values plausible again", self.device.name)
+
+    def _gap(self, t_proc: float) -> None:
+        self._append(t_proc, *self.table.gap())
+
+    def _append(self, t_proc: float, values: np.ndarray, quality: np.ndarray) -> None:
+        fresh = record(self.groups, t_proc, values, quality, self.store)
+        self.store.set_stale(self.loops, self.stale.update(self.polls, fresh))
+
+
+def _block_key(err: DeviceError) -> str:
+    """``holding 100+4`` from ``device X: holding 100+4: exception code 2``."""
+    return str(err).removeprefix(f"device {err.device}: ").split(": ", 1)[0]

@@ -1,0 +1,166 @@
+"""Everything built from one config, and the carry-over from the previous one on reload.
+
+:func:`build_runtime` is a plain function (no sockets, no tasks): from a config (and, on a
+reload, the old :class:`Runtime`, whose pollers have stopped) it builds the result store,
+one source per device, the loop groups (windows) and one poller per device:
+
+* a device whose connection and points are unchanged keeps its source (its connection) and
+  its connection state (up/down, backoff);
+* a loop whose *window signature* (device connection and sample time, window length, OP/PV
+  point definitions) is unchanged keeps its window;
+* a loop whose whole config is also unchanged keeps its latest assessment (same sequence
+  number), latest sample and stale flag;
+* added loops and loops whose window changed start fresh; removed loops are not carried.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..config.model import Config, DeviceConfig, LoopConfig
+from ..config.plugins import input_plugin
+from ..core.points import PointSpec
+from ..core.store import ResultStore
+from ..core.ticks import Backoff, ProcessClock, TickGrid
+from ..core.windows import LoopGroup, WindowBank, load_columns, loop_signature, result_signature
+from ..inputs.base import Source
+from ..outputs.base import Binding
+from ..outputs.prometheus import GatewayMetrics
+from .poller import BACKOFF_BASE_S, Clocks, DevicePoller
+
+__all__ = ["Runtime", "build_runtime", "device_points"]
+
+SourceFactory = Callable[[DeviceConfig, list[PointSpec], float], Source]
+
+
+@dataclasses.dataclass
+class Runtime:
+    """The store, sources, windows and pollers of one config."""
+
+    config: Config
+    clock: ProcessClock
+    store: ResultStore
+    pollers: list[DevicePoller]
+    groups: list[LoopGroup]
+    built_for: dict[str, tuple[DeviceConfig, list[PointSpec]]]  # what each source serves
+
+    @property
+    def sources(self) -> dict[str, Source]:
+        return {p.device.name: p.source for p in self.pollers}
+
+    def binding(self) -> Binding:
+        return Binding(self.config, tuple(self.groups), self.store, self.clock)
+
+
+def device_points(loops: Sequence[LoopConfig]) -> list[PointSpec]:
+    """A device's point list: each loop's OP then PV, in loop order."""
+    return [PointSpec(lp.name, role, p.address, p.scale, p.offset, p.range)
+            for lp in loops for role, p in (("op", lp.op), ("pv", lp.pv))]
+
+
+def plugin_source(device: DeviceConfig, points: list[PointSpec], time_scale: float) -> Source:
+    """The source the device's protocol plugin builds (no connection is opened)."""
+    plugin = input_plugin(device.protocol)
+    assert plugin is not None  # validated at load
+    source: Source = plugin.create_input(device, points, time_scale=time_scale)
+    return source
+
+
+def build_runtime(config: Config, old: Runtime | None = None, *, wall: float,
+                  metrics: GatewayMetrics | None = None, phase_ref: float | None = None,
+                  clocks: Clocks | None = None,
+                  make_source: SourceFactory = plugin_source) -> Runtime:
+    """Build a runtime for ``config`` (see the module docstring); ``wall`` starts a new
+    process clock."""
+    g = config.gateway
+    clock = (old.clock if old is not None and old.clock.time_scale == g.time_scale
+             else ProcessClock(g.time_scale, start=wall))
+    store = ResultStore([lp.name for lp in config.loops])
+    old_cols: dict[str, tuple[WindowBank, int, str]] = {}
+    if old is not None:
+        for og in old.groups:
+            for c, lc in enumerate(og.configs):
+                old_cols[lc.name] = (og.bank, c, loop_signature(old.config, lc))
+    pollers: list[DevicePoller] = []
+    built_for: dict[str, tuple[DeviceConfig, list[PointSpec]]] = {}
+    groups: list[LoopGroup] = []
+    for dev in config.devices:
+        loops = config.loops_of(dev.name)
+        points = device_points(loops)
+        built_for[dev.name] = (dev, points)
+        old_poller = None
+        if old is not None and old.built_for.get(dev.name) == (dev, points):
+            old_poller = next(p for p in old.pollers if p.device.name == dev.name)
+        source = (old_poller.source if old_poller is not None
+                  else make_source(dev, points, g.time_scale))
+        dev_groups = _groups(config, dev, loops, store)
+        for grp in dev_groups:
+            _carry_windows(config, grp, old_cols)
+        groups.extend(dev_groups)
+        poller = DevicePoller(dev, source, dev_groups, points, store=store, metrics=metrics,
+                              clock=clock, clocks=clocks,
+                              backoff=Backoff(min(BACKOFF_BASE_S, g.reconnect_max_s), 2.0,
+                                              g.reconnect_max_s))
+        poller.grid = TickGrid(poller.period, phase_ref)
+        if old_poller is not None:
+            poller.take_over(old_poller)
+        pollers.append(poller)
+    new = Runtime(config, clock, store, pollers, groups, built_for)
+    if old is not None:
+        _carry_results(old, new)
+    return new
+
+
+def _groups(config: Config, dev: DeviceConfig, loops: Sequence[LoopConfig],
+            store: ResultStore) -> list[LoopGroup]:
+    """A device's loops grouped by window length (one bank per length)."""
+    by_size: dict[int, list[int]] = {}
+    for k, lp in enumerate(loops):
+        by_size.setdefault(config.window_samples(lp), []).append(k)
+    out = []
+    for size, members in by_size.items():
+        ks = np.array(members, dtype=np.intp)
+        rows = np.array([store.index[loops[k].name] for k in members], dtype=np.intp)
+        out.append(LoopGroup(dev.name, WindowBank([loops[k].name for k in members], size),
+                             tuple(loops[k] for k in members), 2 * ks, 2 * ks + 1, rows,
+                             dev.poll_interval_s))
+    return out
+
+
+def _carry_windows(config: Config, group: LoopGroup,
+                   old_cols: dict[str, tuple[WindowBank, int, str]]) -> None:
+    """Copy into the group's fresh bank the old windows of loops whose signature held."""
+    columns = {}
+    t_best: Any = np.empty(0)
+    for col, lc in enumerate(group.configs):
+        hit = old_cols.get(lc.name)
+        if hit is None or hit[2] != loop_signature(config, lc):
+            continue
+        old_bank, c, _sig = hit
+        t, op, pv, q = old_bank.series([c])
+        columns[col] = (op[0], pv[0], q[0])
+        if len(t) > len(t_best):
+            t_best = t
+    if columns:
+        load_columns(group.bank, t_best, columns)
+
+
+def _carry_results(old: Runtime, new: Runtime) -> None:
+    """Latest assessment, sample and stale flag of every loop whose config is unchanged."""
+    for name, i in new.store.index.items():
+        j = old.store.index.get(name)
+        if j is None:
+            continue
+        lc_new, lc_old = new.config.loops[i], old.config.loops[j]
+        if result_signature(new.config, lc_new) != result_signature(old.config, lc_old):
+            continue
+        res = old.store.results[j]
+        if res is not None:
+            new.store.restore_result(i, res)
+        new.store.latest_op[i] = old.store.latest_op[j]
+        new.store.latest_pv[i] = old.store.latest_pv[j]
+        new.store.stale[i] = old.store.stale[j]

@@ -1,0 +1,165 @@
+"""The result-register map (docs/modbus-map.md), defined in this one place.
+
+Each loop has a block of :data:`RESULT_BLOCK_SIZE` registers at its ``result_address`` on its
+``result_unit_id``. :data:`LAYOUT` says which field sits at which offset and how it is
+encoded; :func:`result_block` fills a block, :func:`decode_block` reads one back,
+:data:`VERDICT_CODES` numbers the verdicts, and :func:`overlapping_blocks` finds blocks that
+share registers (the config loader refuses them). Adding a field is one :class:`Field` line
+in :data:`LAYOUT` (in the reserved registers) and one entry in :func:`block_values`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from collections.abc import Iterable, Iterator, Mapping
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from stiction import Assessment, Verdict
+
+from .codec import TYPES, decode_registers, encode_values
+
+__all__ = [
+    "LAYOUT",
+    "MAX_RESULT_UNIT_ID",
+    "RESULT_BLOCK_SIZE",
+    "RESULT_LOOPS_PER_UNIT",
+    "VERDICT_CODES",
+    "Field",
+    "block_values",
+    "decode_block",
+    "overlapping_blocks",
+    "result_block",
+    "unit_images",
+    "verdict_code",
+]
+
+RESULT_BLOCK_SIZE = 20
+"""Registers per loop in the result server (offsets +0..+19)."""
+RESULT_LOOPS_PER_UNIT = 65536 // RESULT_BLOCK_SIZE
+"""Loops whose result blocks fit one unit id's 16-bit register space (3,276)."""
+MAX_RESULT_UNIT_ID = 247
+
+VERDICT_CODES: dict[str, int] = {
+    "none": 0,
+    Verdict.NOT_OSCILLATING: 1,
+    Verdict.NO_STICTION: 2,
+    Verdict.UNDETERMINED: 3,
+    Verdict.STICTION: 4,
+    Verdict.BAD_DATA: 5,
+    "stale": 6,
+    Verdict.VALVE_NOT_RESPONDING: 7,
+}
+"""Verdict codes of register +0 ("none": no assessment yet; "stale": no fresh samples)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Field:
+    """One value of a block: its name, first register (offset in the block) and type."""
+
+    name: str
+    offset: int
+    type: str  # a wire.codec type: uint16, uint32, float32, ...
+
+    @property
+    def width(self) -> int:
+        return TYPES[self.type][0]
+
+
+LAYOUT: tuple[Field, ...] = (
+    Field("code", 0, "uint16"),  # VERDICT_CODES
+    Field("seq", 1, "uint16"),  # assessment sequence number, wraps at 65536
+    Field("stiction_index", 2, "float32"),
+    Field("fd_percent", 4, "float32"),
+    Field("fs_percent", 6, "float32"),
+    Field("period_s", 8, "float32"),
+    Field("jump_percent", 10, "float32"),
+    Field("timestamp", 12, "uint32"),  # Unix seconds of the assessment
+    Field("window_fill", 14, "float32"),  # 0-1
+)
+"""Registers +16..+19 are reserved (read as 0)."""
+
+
+class LoopResultLike(Protocol):
+    """What a block is made of (``gateway.core.store.LoopResult`` has it)."""
+
+    @property
+    def assessment(self) -> Assessment: ...
+    @property
+    def seq(self) -> int: ...
+    @property
+    def t(self) -> float: ...
+    @property
+    def window_fill(self) -> float: ...
+
+
+def verdict_code(result: LoopResultLike | None, stale: bool = False) -> int:
+    """Register +0 of a loop: stale wins over any assessment."""
+    if stale:
+        return VERDICT_CODES["stale"]
+    if result is None:
+        return VERDICT_CODES["none"]
+    return VERDICT_CODES[result.assessment.verdict]
+
+
+def _num(x: float | None, factor: float = 1.0) -> float:
+    return math.nan if x is None else float(x) * factor
+
+
+def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
+    """The field values of one loop's block (fields left out are 0)."""
+    if result is None:
+        return {"code": code}
+    a = result.assessment
+    return {"code": code, "seq": result.seq % 65536,
+            "stiction_index": _num(a.stiction_index), "fd_percent": _num(a.fd, 100.0),
+            "fs_percent": _num(a.fs, 100.0), "period_s": _num(a.period_s),
+            "jump_percent": _num(a.jump, 100.0), "timestamp": max(0, int(result.t)),
+            "window_fill": result.window_fill}
+
+
+def result_block(result: LoopResultLike | None, *, code: int, word_order: str = "big"
+                 ) -> NDArray[np.uint16]:
+    """The :data:`RESULT_BLOCK_SIZE` registers of one loop."""
+    block = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
+    values = block_values(result, code)
+    for f in LAYOUT:
+        if f.name in values:
+            block[f.offset:f.offset + f.width] = encode_values([values[f.name]], f.type,
+                                                               word_order)[0]
+    return block
+
+
+def decode_block(registers: Iterable[int] | NDArray[np.uint16], word_order: str = "big"
+                 ) -> dict[str, float]:
+    """The field values of a block read from the server (``reserved``: sum of +16..+19)."""
+    regs = np.asarray(list(registers) if not isinstance(registers, np.ndarray) else registers,
+                      dtype=np.uint16)
+    out = {f.name: float(decode_registers(regs[f.offset:f.offset + f.width], f.type,
+                                          word_order)[0]) for f in LAYOUT}
+    end = max(f.offset + f.width for f in LAYOUT)
+    out["reserved"] = float(regs[end:RESULT_BLOCK_SIZE].astype(np.int64).sum())
+    return out
+
+
+def overlapping_blocks(blocks: Iterable[tuple[str, int, int]]
+                       ) -> Iterator[tuple[str, int, int, str, int]]:
+    """Pairs of neighbouring blocks (in unit id and address order) that share registers.
+
+    ``blocks`` are ``(loop, unit id, address)``; yields ``(loop, unit id, address, other
+    loop, other address)`` for each block that starts inside the block before it. The same
+    address on two unit ids is fine."""
+    ordered = sorted(blocks, key=lambda b: (b[1], b[2]))
+    for (pname, punit, pa), (name, unit, a) in itertools.pairwise(ordered):
+        if unit == punit and a < pa + RESULT_BLOCK_SIZE:
+            yield name, unit, a, pname, pa
+
+
+def unit_images(addresses: Mapping[int, Iterable[int]]) -> dict[int, NDArray[np.uint16]]:
+    """Zeroed register images per unit id, each long enough for its blocks' addresses."""
+    return {u: np.zeros(max([RESULT_BLOCK_SIZE, *(a + RESULT_BLOCK_SIZE for a in addrs)]),
+                        dtype=np.uint16) for u, addrs in addresses.items()}

@@ -1,0 +1,153 @@
+"""``stiction-gateway demo``: a simulated PLC and the gateway against it, time-accelerated,
+with a live table of verdicts. Runs until Ctrl-C (or ``--duration`` seconds).
+
+Loops (scenarios of :mod:`stiction.scenarios`, He-model valves, measurement noise):
+
+=======  =================  ==================================================
+FIC101   table4-case2       sticky flow valve (fd 27 %, fs 30 %), period ~230 s
+LIC201   table5-case2       sticky level valve, integrating process, period ~90 s
+TIC301   healthy            good valve, settles after its setpoint step
+FIC401   disturbance        good valve, 600 s sinusoidal load disturbance
+PIC501   aggressive-tuning  good valve, controller near its stability limit
+=======  =================  ==================================================
+
+At the default 40x, one wall second is 40 process seconds: the sticky flow loop shows
+``stiction`` after about 10 s of wall time, the level loop after about 25 s.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import socket
+import sys
+import time
+from typing import TextIO
+
+from gateway.config import parse_config
+from gateway.runtime.gateway import Gateway
+from gateway.runtime.service import install_stop_signals
+
+from .config import parse_sim_config
+from .gateway_config import gateway_config
+from .sim import PlcSim
+
+__all__ = ["DEMO_LOOPS", "demo_configs", "run_demo"]
+
+DEMO_TIME_SCALE = 40.0
+DEMO_ANALYSIS_INTERVAL_S = 120.0  # process seconds (3 s of wall time at 40x)
+DEMO_NOISE = 0.02
+# The demo is deterministic in its simulated loops (seeded). Seeds 1-8 were checked offline
+# over the first 3600 process s: in 6 of 8 the verdicts are as below; 4 is one of those.
+# (With shorter 1200 s windows the aggressive-tuning loop was briefly called `stiction` in
+# 3 of 8 seeds: a limit of the analysis on a few cycles of a noisy resonance.)
+DEMO_SEED = 4
+
+# name, scenario, window_s, what a plant engineer should see
+DEMO_LOOPS: tuple[tuple[str, str, float, str], ...] = (
+    ("FIC101", "table4-case2", 1800.0, "sticky flow valve"),
+    ("LIC201", "table5-case2", 2400.0, "sticky level valve"),
+    ("TIC301", "healthy", 1800.0, "healthy loop"),
+    ("FIC401", "disturbance", 3600.0, "external disturbance"),
+    ("PIC501", "aggressive-tuning", 2400.0, "aggressive tuning"),
+)
+
+
+def _free(host: str, port: int) -> int:
+    """``port`` if it can be bound on ``host``, else 0 (any free port)."""
+    with socket.socket() as sock:
+        try:
+            sock.bind((host, port))
+        except OSError:
+            return 0
+    return port
+
+
+def demo_configs(*, time_scale: float = DEMO_TIME_SCALE, metrics_port: int = 9108,
+                 result_port: int = 5020, sim_port: int = 0) -> tuple[dict, dict]:  # type: ignore[type-arg]
+    """The plc-sim config and a gateway-config template (device port filled in later)."""
+    sim = {
+        "listen": f"127.0.0.1:{sim_port}", "unit_id": 1, "ts": 1.0, "time_scale": time_scale,
+        "seed": DEMO_SEED,
+        "loops": [{"name": n, "scenario": sc, "noise": DEMO_NOISE, "window_s": w}
+                  for n, sc, w, _ in DEMO_LOOPS],
+    }
+    sim_cfg = parse_sim_config(sim, "<demo plc-sim>")
+    gw = gateway_config(sim_cfg, analysis_interval_s=DEMO_ANALYSIS_INTERVAL_S,
+                        metrics_listen=f"127.0.0.1:{metrics_port}",
+                        result_listen=f"127.0.0.1:{result_port}")
+    return sim, gw
+
+
+def _fmt(x: float | None, scale: float = 1.0, digits: int = 2) -> str:
+    if x is None or not math.isfinite(x):
+        return "-"
+    return f"{x * scale:.{digits}f}"
+
+
+def _short(text: str, width: int = 60) -> str:
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def render_table(gw: Gateway, started: float, out: TextIO) -> None:
+    st = gw.store
+    proc = (time.monotonic() - started) * gw.config.gateway.time_scale
+    lines = [f"t = {time.monotonic() - started:5.1f} s wall, {proc:7.0f} s process",
+             f"{'loop':8} {'what':22} {'verdict':16} {'SI':>6} {'fd %':>6} {'fs %':>6} "
+             f"{'period s':>8} {'fill':>5} {'#':>4}  reason"]
+    what = {n: w for n, _, _, w in DEMO_LOOPS}
+    for i, name in enumerate(st.loops):
+        res = st.results[i]
+        a = res.assessment if res else None
+        lines.append(
+            f"{name:8} {what.get(name, ''):22} {st.verdict_name(i):16} "
+            f"{_fmt(a.stiction_index if a else None):>6} {_fmt(a.fd if a else None, 100, 1):>6} "
+            f"{_fmt(a.fs if a else None, 100, 1):>6} {_fmt(a.period_s if a else None, 1, 0):>8} "
+            f"{_fmt(res.window_fill if res else None):>5} {res.seq if res else 0:>4}  "
+            f"{_short(a.reason) if a else ''}")
+    if out.isatty():
+        out.write("\x1b[H\x1b[J")
+    out.write("\n".join(lines) + "\n\n")
+    out.flush()
+
+
+async def run_demo(duration: float | None = None, *, out: TextIO = sys.stdout,
+                   refresh_s: float = 2.0, time_scale: float = DEMO_TIME_SCALE) -> Gateway:
+    """Run the demo until Ctrl-C/SIGTERM or ``duration`` wall seconds; returns the gateway
+    (stopped) so callers can inspect its final store."""
+    stop = asyncio.Event()
+    with contextlib.suppress(NotImplementedError, RuntimeError):
+        install_stop_signals(stop)
+    sim_raw, gw_raw = demo_configs(time_scale=time_scale,
+                                   metrics_port=_free("127.0.0.1", 9108),
+                                   result_port=_free("127.0.0.1", 5020))
+    sim_cfg = parse_sim_config(sim_raw, "<demo plc-sim>")
+    async with PlcSim(sim_cfg) as sim:
+        gw_raw["devices"][0]["port"] = sim.port
+        config = parse_config(gw_raw, "<demo gateway>")
+        gateway = Gateway(config)
+        gateway.align_polls(sim.mid_step())
+        async with gateway as gw:
+            out.write(
+                f"stiction-gateway demo: {len(config.loops)} simulated loops at "
+                f"{time_scale:g}x real time (plc-sim on 127.0.0.1:{sim.port})\n"
+                f"  Prometheus metrics: http://127.0.0.1:{gw.metrics_port}/metrics\n"
+                f"  Modbus result server: 127.0.0.1:{gw.result_port} unit 1 "
+                f"(map: docs/modbus-map.md)\n"
+                f"  analysis every {config.gateway.analysis_interval_s:g} process s; "
+                f"Ctrl-C to stop\n\n")
+            out.flush()
+            started = time.monotonic()
+            deadline = None if duration is None else started + duration
+            while not stop.is_set():
+                timeout = refresh_s
+                if deadline is not None:
+                    timeout = min(timeout, max(0.0, deadline - time.monotonic()))
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(stop.wait(), timeout)
+                render_table(gw, started, out)
+                if deadline is not None and time.monotonic() >= deadline:
+                    break
+            out.write("demo stopped\n")
+            return gw

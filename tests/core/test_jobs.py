@@ -1,0 +1,71 @@
+"""core.jobs: what an analysis worker runs, with literal windows."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gateway.core.jobs import LoopJob, analyze_batch, bad_values_reason, batches
+from gateway.core.points import Quality
+from gateway.core.windows import LoopGroup, WindowBank
+from stiction import Verdict
+
+G, B, N = Quality.GOOD, Quality.BAD, Quality.NO_COMM
+FAKE = "gateway_fake_analyze:analyze"
+
+
+def job(op: np.ndarray, quality: np.ndarray, index: int = 0) -> LoopJob:
+    n = len(op)
+    return LoopJob(index, op.astype(np.float32), np.full(n, 20.0, np.float32),
+                   quality.astype(np.uint8), size=2 * n, ts=1.0, kp=None, delay=0.0,
+                   process="self-regulating", op_range=(0.0, 100.0))
+
+
+def test_bad_values_reason() -> None:
+    assert bad_values_reason(np.full(50, G, np.uint8), 50) is None
+    tail = np.array([G] * 46 + [B] * 4, np.uint8)
+    assert bad_values_reason(tail, 46).startswith("the latest 4 samples are bad values")
+    few = np.array([B] * 10 + [G] * 20, np.uint8)
+    assert bad_values_reason(few, 20).startswith("only 20 usable samples")
+    assert bad_values_reason(np.array([B] * 10 + [G] * 40, np.uint8), 40) is None
+    assert bad_values_reason(np.array([N] * 10 + [G] * 5, np.uint8), 5) is None  # stale
+
+
+def test_analyze_batch_fill_bad_data_and_the_analysis() -> None:
+    t = np.arange(100)
+    swing = 50 + 10 * np.sign(np.sin(t / 5))
+    out = analyze_batch(FAKE, [
+        job(swing, np.full(100, G)),
+        job(swing, np.array([G] * 90 + [B] * 10), index=1),
+        job(swing, np.full(100, N), index=2),
+    ])
+    (i0, a0, fill0, n0, _), (i1, a1, _, _, _), (i2, a2, fill2, n2, _) = out
+    assert (i0, a0.verdict, fill0, n0) == (0, Verdict.STICTION, 0.5, 100)
+    assert i1 == 1 and a1.verdict == Verdict.BAD_DATA and "bad values" in a1.reason
+    assert (i2, a2.verdict, fill2, n2) == (2, Verdict.BAD_DATA, 0.0, 0)
+    assert a2.reason == "no usable samples in the window yet"
+
+
+def test_a_failing_analysis_is_bad_data_not_a_crash() -> None:
+    (_, a, _, _, _), = analyze_batch("test_jobs:_raises", [job(np.ones(40), np.full(40, G))])
+    assert a.verdict == Verdict.BAD_DATA
+    assert a.reason == "analysis failed: ZeroDivisionError: no"
+
+
+def _raises(*_: object, **__: object) -> None:
+    raise ZeroDivisionError("no")
+
+
+def test_batches_copy_windows_batch_by_batch() -> None:
+    bank = WindowBank([f"L{i}" for i in range(5)], 16)
+    for k in range(3):
+        bank.append(float(k), np.arange(5.0) + k, np.zeros(5), np.zeros(5, np.uint8))
+    rows = np.arange(10, 15, dtype=np.intp)
+    cfg = __import__("types").SimpleNamespace(kp=1.5, delay_s=2.0, process="integrating",
+                                              op_range=(0.0, 100.0))
+    group = LoopGroup("d", bank, (cfg,) * 5, rows, rows, rows, 0.5)  # type: ignore[arg-type]
+    empty = LoopGroup("e", WindowBank(["X"], 16), (cfg,), rows[:1], rows[:1], rows[:1], 1.0)  # type: ignore[arg-type]
+    got = list(batches([empty, group], 2))
+    assert [[j.index for j in b] for b in got] == [[10, 11], [12, 13], [14]]
+    j = got[1][1]
+    assert j.op.tolist() == [3.0, 4.0, 5.0] and j.size == 16 and j.ts == 0.5
+    assert (j.kp, j.delay, j.process) == (1.5, 2.0, "integrating")

@@ -1,0 +1,259 @@
+"""Reload (SIGHUP), in memory: the carry-over is a function (``build_runtime(new, old)``),
+checked poll by poll with a fake clock; then a running gateway reloads: the result
+registers and the metrics follow, devices keep their connection and schedule, a bad file
+or a runtime that cannot be built is refused and polling goes on. (SIGHUP itself drives
+:meth:`Gateway.reload` in the systemd subprocess test, tests/e2e/test_systemd_notify.py.)"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from memory_harness import Harness, mconfig, mloop, wiggle
+from prometheus_client import CollectorRegistry
+from pymodbus.client import AsyncModbusTcpClient
+from reliability_helpers import FAKE, lateness, until
+
+from gateway.config import load_config, parse_config
+from gateway.core.points import Quality
+from gateway.inputs.memory import memory_device
+from gateway.runtime.gateway import Gateway
+
+CASES = Path(__file__).resolve().parents[1] / "cases"
+BAD = (CASES / "bad-file" / "gateway.yaml").read_text()
+EXPECTED = [line.removeprefix("gateway.yaml: ")
+            for line in (CASES / "bad-file" / "expected.err").read_text().splitlines()]
+
+
+def _configs() -> tuple[dict[str, Any], dict[str, Any]]:
+    """First: A, B, C on plc, E on plc2. Second: B removed, C's window longer, D added;
+    plc2 and E unchanged."""
+    devs = [memory_device("plc", wiggle(400, 8), poll_interval_s=0.05, repeat=True),
+            memory_device("plc2", wiggle(400, 2), poll_interval_s=0.05, repeat=True)]
+    a, b, c = mloop("A", "plc", 0, 0), mloop("B", "plc", 2, 20), mloop("C", "plc", 4, 40)
+    e = mloop("E", "plc2", 0, 80)
+    first = mconfig(devs, [a, b, c, e], analysis_interval_s=0.5)
+    second = mconfig(devs, [a, {**c, "window_s": 20.0}, mloop("D", "plc", 6, 60), e],
+                     analysis_interval_s=0.5)
+    return first, second
+
+
+def test_build_runtime_carries_windows_results_and_connections_over() -> None:
+    first, second = _configs()
+    h1 = Harness(parse_config(first, "first"))
+
+    async def go() -> Harness:
+        await h1.tick(30)
+        h1.analyse(FAKE)
+        h1.analyse(FAKE)
+        h1.source("plc2").down = "connect"  # plc2 goes down before the reload ...
+        await h1.tick(2)
+        return Harness(parse_config(second, "second"), old=h1)
+
+    h2 = asyncio.run(go())
+    before = h1.window("A")
+    after = h2.window("A")
+    assert len(before[0]) == 32
+    for x, y in zip(before, after, strict=True):  # A: its window, sample for sample
+        np.testing.assert_array_equal(x, y)
+    assert h2.store.results[h2.store.index["A"]].seq == 2  # and its result
+    assert h2.store.results[h2.store.index["E"]].seq == 2
+    assert len(h2.window("C")[0]) == 0  # C: window changed: fresh
+    assert (h2.window("D")[3] == Quality.MISSING).all()  # D: new, in A's bank
+    assert h2.store.results[h2.store.index["C"]] is None
+    assert h2.store.results[h2.store.index["D"]] is None
+    assert "B" not in h2.store.index
+    # plc's points changed: a new source; plc2 kept its source and its state (down)
+    assert h2.poller("plc").source is not h1.poller("plc").source
+    assert h2.poller("plc2").source is h1.poller("plc2").source
+    assert h2.poller("plc2").up is False and h2.poller("plc2").link is h1.poller("plc2").link
+    assert h2.runtime.clock is h1.runtime.clock
+
+
+def _write(path: Path, data: dict[str, Any]) -> Path:
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _verdict(reg: CollectorRegistry, name: str) -> float | None:
+    return reg.get_sample_value("stiction_loop_verdict",
+                                {"loop": name, "verdict": "not_oscillating"})
+
+
+def _thread() -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(1)
+
+
+@pytest.mark.timing
+@pytest.mark.timeout(60)
+def test_a_running_gateway_reloads_and_refuses_bad_files(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level(logging.INFO, logger="gateway")
+    first, second = _configs()
+    out: dict[str, Any] = {}
+
+    async def go() -> None:
+        reg = CollectorRegistry()
+        async with Gateway(load_config(_write(tmp_path / "first.yaml", first)), registry=reg,
+                           analyze=FAKE, serve_http=False, executor=_thread) as gw:
+            await until(lambda: gw.scheduler.rounds >= 2)
+            out["seq_before"] = {n: gw.store.results[i].seq for n, i in gw.store.index.items()}
+            out["metrics_before"] = {n: _verdict(reg, n) for n in "ABCDE"}
+            sources = [p.source for p in gw.pollers]
+            poller0 = gw.pollers[0]
+            assert await gw.reload(_write(tmp_path / "second.yaml", second))
+            out["same_source"] = [p.source is x for p, x in zip(gw.pollers, sources,
+                                                                strict=True)]
+            out["seq_after"] = {n: (r.seq if r else None) for n, r in
+                                zip(gw.store.loops, gw.store.results, strict=True)}
+            out["metrics_after"] = {n: _verdict(reg, n) for n in "ABCDE"}
+            out["registers"] = gw.result_server.images[1][:80].tolist()
+            polls = gw.pollers[0].polls
+            (tmp_path / "bad.yaml").write_text(BAD)
+            out["bad_reload"] = await gw.reload(tmp_path / "bad.yaml")
+            out["config_after_bad"] = gw.config.source
+            await asyncio.sleep(0.5)
+            out["polls_after_bad"] = gw.pollers[0].polls - polls
+            out["due"] = (poller0.next_due, gw.pollers[0].next_due)
+            out["starts"] = poller0.tick_starts + gw.pollers[0].tick_starts
+            out["missed"] = poller0.missed_ticks + gw.pollers[0].missed_ticks
+            out["reconnects"] = gw.pollers[1].reconnects
+
+    asyncio.run(asyncio.wait_for(go(), 50))
+    assert out["seq_after"]["A"] == out["seq_before"]["A"]  # A's result carried over
+    assert out["seq_after"]["C"] is None and out["seq_after"]["D"] is None
+    assert "B" not in out["seq_after"]
+    # B vanished from the metrics and the registers
+    assert out["metrics_before"] == {"A": 1.0, "B": 1.0, "C": 1.0, "D": None, "E": 1.0}
+    assert out["metrics_after"]["B"] is None and out["metrics_after"]["A"] == 1.0
+    regs = out["registers"]
+    assert regs[0] == 1 and regs[1] == out["seq_before"]["A"]  # A: not_oscillating, seq
+    assert regs[20:40] == [0] * 20  # B's block is empty
+    assert regs[40] == 0 and regs[60] == 0  # C and D: no result yet
+    # plc's points changed: a new source (connection); plc2 kept its connection
+    assert out["same_source"] == [False, True]
+    assert out["reconnects"] == 0
+    # the schedule went on: the new poller's ticks are due on the old one's grid, none was
+    # missed, none started late
+    handed_over, later = out["due"]
+    ticks = (later - handed_over) / 0.05
+    assert ticks > 5 and abs(ticks - round(ticks)) < 1e-6
+    assert out["missed"] == 0
+    assert float(lateness(out["starts"], 0.05).max()) < 0.05
+    # the bad file: refused with every problem, the running config stays, polls go on
+    assert out["bad_reload"] is False
+    assert out["config_after_bad"].endswith("second.yaml")
+    assert out["polls_after_bad"] >= 5
+    refused = [r.getMessage() for r in caplog.records if "reload refused" in r.getMessage()]
+    assert len(refused) == 1
+    for line in EXPECTED:
+        assert line in refused[0]
+    assert any("reloaded" in r.getMessage() and "1 added, 1 removed" in r.getMessage()
+               for r in caplog.records)
+
+
+@pytest.mark.timeout(60)
+def test_reload_that_fails_while_building_keeps_polling(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A config that validates but cannot be applied (here: the source of a new device
+    cannot be built) leaves the running config and its pollers in place."""
+    import gateway.inputs.memory as memory_plugin  # noqa: PLC0415
+
+    rows = wiggle(100, 4)
+    first = mconfig([memory_device("plc", rows, poll_interval_s=0.05)],
+                    [mloop("A", "plc", 0, 0)])
+    second = mconfig([memory_device("plc", rows, poll_interval_s=0.05),
+                      memory_device("new", rows, poll_interval_s=0.05)],
+                     [mloop("A", "plc", 0, 0), mloop("N", "new", 2, 20)])
+    out: dict[str, Any] = {}
+
+    async def go() -> None:
+        async with Gateway(load_config(_write(tmp_path / "a.yaml", first)),
+                           registry=CollectorRegistry(), analyze=FAKE, serve_http=False,
+                           executor=_thread) as gw:
+            await until(lambda: gw.pollers[0].good_polls >= 3)
+
+            def broken(*_: Any, **__: Any) -> Any:
+                raise RuntimeError("source cannot be built")
+
+            monkeypatch.setattr(memory_plugin, "create_input", broken)
+            out["ok"] = await gw.reload(_write(tmp_path / "b.yaml", second))
+            polls = gw.pollers[0].good_polls
+            await asyncio.sleep(0.5)
+            out["polls"] = gw.pollers[0].good_polls - polls
+            out["loops"] = list(gw.store.loops)
+
+    asyncio.run(asyncio.wait_for(go(), 50))
+    assert out["ok"] is False
+    assert out["loops"] == ["A"]
+    assert out["polls"] >= 5
+    assert any("reload failed, keeping the running config" in r.getMessage()
+               for r in caplog.records)
+
+
+@pytest.mark.timeout(60)
+def test_reload_moves_loops_between_result_unit_ids(tmp_path: Path) -> None:
+    """Input in memory; the result server read over 127.0.0.1, unit id by unit id."""
+    out: dict[str, Any] = {}
+
+    async def read(port: int, unit: int, address: int) -> list[int] | int:
+        """The 20 registers of a block, or the exception code."""
+        client = AsyncModbusTcpClient("127.0.0.1", port=port, timeout=2, retries=0)
+        await client.connect()
+        try:
+            rsp = await client.read_holding_registers(address, count=20, device_id=unit)
+            return int(rsp.exception_code) if rsp.isError() else list(rsp.registers)
+        finally:
+            client.close()
+
+    dev = memory_device("plc", wiggle(100, 6), poll_interval_s=0.05, repeat=True)
+    a, b = mloop("A", "plc", 0, 0), mloop("B", "plc", 2, 20)
+    one = _write(tmp_path / "one.yaml", mconfig([dev], [a, b], analysis_interval_s=0.5))
+    # B moves to unit id 2 (same address as A), C is new there: a unit id the running
+    # server has no device for
+    b2, c2 = {**b, "result_address": 0, "result_unit_id": 2}, \
+        {**mloop("C", "plc", 4, 20), "result_unit_id": 2}
+    two = _write(tmp_path / "two.yaml", mconfig([dev], [a, b2, c2], analysis_interval_s=0.5))
+
+    async def go() -> None:
+        async with Gateway(load_config(one), registry=CollectorRegistry(), analyze=FAKE,
+                           serve_http=False, executor=_thread) as gw:
+            await until(lambda: gw.scheduler.rounds >= 2)
+            out["seq_b"] = gw.store.results[gw.store.index["B"]].seq
+            out["unit2_before"] = await read(gw.result_port, 2, 0)
+            first = gw.result_server.server
+            assert await gw.reload(two)
+            out["restarted"] = gw.result_server.server is not first
+            out["b_on_2"] = await read(gw.result_port, 2, 0)
+            out["c_on_2"] = await read(gw.result_port, 2, 20)
+            out["a_on_1"] = await read(gw.result_port, 1, 0)
+            out["old_b_on_1"] = await read(gw.result_port, 1, 20)
+            second = gw.result_server.server
+            assert await gw.reload(one)  # back: unit id 2 no longer used
+            out["rebound"] = gw.result_server.server is second
+            out["unit2_after"] = await read(gw.result_port, 2, 0)
+            out["b_back_on_1"] = await read(gw.result_port, 1, 20)
+
+    asyncio.run(asyncio.wait_for(go(), 50))
+    assert out["unit2_before"] == 0x0A
+    assert out["restarted"]
+    b_on_2 = out["b_on_2"]
+    assert isinstance(b_on_2, list)
+    assert b_on_2[0] == 1  # B's result carried over (not_oscillating) ...
+    assert b_on_2[1] == out["seq_b"] % 65536  # ... with its sequence number
+    assert isinstance(out["c_on_2"], list)
+    assert out["c_on_2"][0] == 0  # C: new, no result yet
+    assert isinstance(out["a_on_1"], list)
+    assert out["a_on_1"][0] == 1
+    assert out["old_b_on_1"] == 2  # B's old block on unit id 1 is gone (illegal address)
+    assert out["rebound"]  # no new unit id: the running server was rebound
+    assert out["unit2_after"] == 0x0A
+    assert isinstance(out["b_back_on_1"], list)
+    assert out["b_back_on_1"][0] == 1

@@ -1,0 +1,247 @@
+"""Helpers for the deployment tests (tests/deploy/test_deploy_*.py): the real tools (promtool,
+prometheus, mbpoll, systemd-analyze), the queries in the dashboards and rules, and a
+throwaway Prometheus server on 127.0.0.1.
+
+A missing tool skips the test locally and fails it under ``CI=true`` (`.ci/run` installs
+the tools from Debian packages, so in CI a missing one is a broken setup, not a reason to skip).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import time
+import urllib.error
+import urllib.parse
+import urllib.request
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from bench._net import free_port
+
+REPO = Path(__file__).resolve().parents[2]
+DEPLOY = REPO / "deploy"
+DASHBOARDS = DEPLOY / "grafana" / "dashboards"
+PROM_DIR = DEPLOY / "prometheus"
+RULE_FILES = sorted((PROM_DIR / "rules").glob("*.yml"))
+UNIT = DEPLOY / "systemd" / "stiction-gateway.service"
+
+
+def in_ci() -> bool:
+    return os.environ.get("CI", "").lower() == "true"
+
+
+def require_tool(name: str, package: str) -> str:
+    """Path of the executable ``name``; skip (locally) or fail (CI=true) when it is missing."""
+    path = shutil.which(name)
+    if path is not None:
+        return path
+    reason = f"{name} not found (Debian package {package!r}; .ci/run installs it)"
+    if in_ci():
+        pytest.fail(f"CI=true and {reason}")
+    pytest.skip(reason)
+
+
+def require(condition: bool, reason: str) -> None:
+    """Skip (locally) or fail (CI=true) when something a test needs is not there."""
+    if condition:
+        return
+    if in_ci():
+        pytest.fail(f"CI=true and {reason}")
+    pytest.skip(reason)
+
+
+def run(cmd: list[str], timeout: float = 60, **kw: Any) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=False, **kw)
+
+
+# ------------------------------------------------------------------ dashboards and rules
+
+
+@dataclass(frozen=True)
+class Query:
+    """One PromQL expression found in a deploy file."""
+
+    where: str  # file and panel/rule, for messages
+    expr: str
+    kind: str  # "panel", "variable", "record", "alert"
+    instant: bool = False
+
+
+def load_dashboards() -> dict[str, dict[str, Any]]:
+    return {p.name: json.loads(p.read_text()) for p in sorted(DASHBOARDS.glob("*.json"))}
+
+
+def iter_panels(panels: list[dict[str, Any]]) -> Iterator[dict[str, Any]]:
+    for panel in panels:
+        yield panel
+        yield from iter_panels(panel.get("panels", []))  # collapsed rows
+
+
+def dashboard_queries() -> list[Query]:
+    out: list[Query] = []
+    for name, dash in load_dashboards().items():
+        for panel in iter_panels(dash["panels"]):
+            for t in panel.get("targets", []):
+                out.append(
+                    Query(
+                        f"{name}: panel {panel['title']!r} query {t['refId']}",
+                        t["expr"],
+                        "panel",
+                        instant=bool(t.get("instant")) and not t.get("range"),
+                    )
+                )
+        for var in dash["templating"]["list"]:
+            if var["type"] == "query":
+                q = var["query"]["query"] if isinstance(var["query"], dict) else var["query"]
+                out.append(Query(f"{name}: variable ${var['name']}", q, "variable"))
+    return out
+
+
+def rule_queries() -> list[Query]:
+    out: list[Query] = []
+    for path in RULE_FILES:
+        for group in yaml.safe_load(path.read_text())["groups"]:
+            for rule in group["rules"]:
+                kind = "alert" if "alert" in rule else "record"
+                out.append(Query(f"{path.name}: {kind} {rule[kind]}", rule["expr"], kind))
+    return out
+
+
+_LABEL_VALUES = re.compile(r"^label_values\((?:(?P<match>.+),\s*)?(?P<label>\w+)\)$", re.S)
+
+
+def substitute(expr: str, *, loop: str, instance: str = ".*", rate: str = "1m") -> str:
+    """Replace Grafana's template variables the way Grafana would, with the given values."""
+    return (
+        expr.replace("$__rate_interval", rate)
+        .replace("$__interval", rate)
+        .replace("$instance", instance)
+        .replace("$loop", loop)
+    )
+
+
+def parse_label_values(expr: str) -> tuple[str | None, str]:
+    """``label_values(match, label)`` (a Grafana variable query) -> (match, label)."""
+    m = _LABEL_VALUES.match(expr.strip())
+    if m is None:
+        raise ValueError(f"not a label_values() query: {expr!r}")
+    return m.group("match"), m.group("label")
+
+
+# ------------------------------------------------------------------ Prometheus server
+
+
+class Prometheus:
+    """A real Prometheus on 127.0.0.1 with a temporary config and TSDB."""
+
+    def __init__(self, workdir: Path, config: dict[str, Any], rule_files: list[Path]) -> None:
+        self.binary = require_tool("prometheus", "prometheus")
+        self.workdir = workdir
+        self.port = free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        workdir.mkdir(parents=True, exist_ok=True)
+        config = dict(config)
+        config["rule_files"] = [str(p) for p in rule_files]
+        self.config_path = workdir / "prometheus.yml"
+        self.config_path.write_text(yaml.safe_dump(config, sort_keys=False))
+        self.log_path = workdir / "prometheus.log"
+        self.proc: subprocess.Popen[bytes] | None = None
+
+    def __enter__(self) -> Prometheus:
+        with self.log_path.open("wb") as log:
+            self.proc = subprocess.Popen(
+                [
+                    self.binary,
+                    f"--config.file={self.config_path}",
+                    f"--storage.tsdb.path={self.workdir / 'data'}",
+                    f"--web.listen-address=127.0.0.1:{self.port}",
+                    "--log.level=warn",
+                ],
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"prometheus exited: {self.log_path.read_text()}")
+            with (
+                contextlib.suppress(OSError),
+                urllib.request.urlopen(f"{self.url}/-/ready", timeout=1) as r,
+            ):
+                if r.status == 200:
+                    return self
+            time.sleep(0.1)
+        raise RuntimeError(f"prometheus not ready: {self.log_path.read_text()}")
+
+    def __exit__(self, *exc: object) -> None:
+        if self.proc is not None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+
+    def api(self, path: str, **params: str) -> dict[str, Any]:
+        """GET /api/v1/<path>; returns the JSON answer, also for 4xx (a parse error)."""
+        url = f"{self.url}/api/v1/{path}?{urllib.parse.urlencode(params)}"
+        try:
+            with urllib.request.urlopen(url, timeout=10) as r:
+                return dict(json.load(r))
+        except urllib.error.HTTPError as e:
+            return dict(json.load(e))
+
+    def query(self, expr: str) -> dict[str, Any]:
+        return self.api("query", query=expr)
+
+    def query_range(self, expr: str, seconds: float, step: str = "1s") -> dict[str, Any]:
+        end = time.time()
+        return self.api(
+            "query_range", query=expr, start=f"{end - seconds:.3f}", end=f"{end:.3f}", step=step
+        )
+
+    def run_query(self, q: Query, *, loop: str, rate: str = "1m", seconds: float = 60) -> Any:
+        """Run a dashboard/rule query as Grafana or the rule engine would; returns the
+        answer's ``data`` (a parse error or other failure raises AssertionError)."""
+        expr = substitute(q.expr, loop=loop, rate=rate)
+        if q.kind == "variable":
+            match, label = parse_label_values(expr)
+            params = {"match[]": match} if match else {}
+            ans = self.api(f"label/{label}/values", **params)
+        elif q.kind == "panel" and not q.instant:
+            ans = self.query_range(expr, seconds)
+        else:
+            ans = self.query(expr)
+        assert ans.get("status") == "success", f"{q.where}: {expr}\n -> {ans}"
+        return ans["data"]
+
+    def targets_up(self) -> list[dict[str, Any]]:
+        return list(self.api("targets")["data"]["activeTargets"])
+
+    def alerts(self) -> list[dict[str, Any]]:
+        return list(self.api("alerts")["data"]["alerts"])
+
+
+def has_data(data: Any) -> bool:
+    """Whether a query answer's ``data`` holds at least one sample/value."""
+    if isinstance(data, list):  # label values
+        return len(data) > 0
+    result = data["result"]
+    if data["resultType"] in ("scalar", "string"):
+        return True
+    return len(result) > 0
+
+
+def http_get(url: str, timeout: float = 5) -> str:
+    with urllib.request.urlopen(url, timeout=timeout) as r:
+        return str(r.read().decode())

@@ -1,0 +1,105 @@
+"""wire.results: the result-register map, in one place (docs/modbus-map.md)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gateway.core.store import ResultStore
+from gateway.wire.results import (
+    LAYOUT,
+    RESULT_BLOCK_SIZE,
+    VERDICT_CODES,
+    decode_block,
+    overlapping_blocks,
+    result_block,
+    unit_images,
+    verdict_code,
+)
+from stiction import Assessment, Verdict
+
+STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
+                    stiction_index=0.93, fd=0.27, fs=0.30, jump=0.03, fd_op=27.0, fs_op=30.0,
+                    cycles_used=6)
+NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0,
+                   stiction_index=0.01)
+
+
+def _store() -> ResultStore:
+    st = ResultStore(["FIC101", "FIC401", "TIC301"])
+    st.set_result(0, STICKY, t=1_700_000_000.5, window_fill=1.0, samples=1800)
+    st.set_result(0, STICKY, t=1_700_000_300.0, window_fill=0.5, samples=1800)
+    st.set_result(1, NO_KP, t=1_700_000_300.0, window_fill=0.25, samples=900)
+    return st
+
+
+def _decode_block(regs: np.ndarray, word_order: str = "big") -> dict[str, float]:
+    b = decode_block(regs, word_order)
+    return {"code": b["code"], "seq": b["seq"], "si": b["stiction_index"],
+            "fd": b["fd_percent"], "fs": b["fs_percent"], "period": b["period_s"],
+            "jump": b["jump_percent"], "t": b["timestamp"], "fill": b["window_fill"],
+            "reserved": b["reserved"]}
+
+
+@pytest.mark.parametrize("word_order", ["big", "little"])
+def test_result_block_layout(word_order: str) -> None:
+    st = _store()
+    b = _decode_block(result_block(st.results[0], code=verdict_code(st.results[0]),
+                                   word_order=word_order), word_order)
+    assert b["code"] == 4
+    assert b["seq"] == 2
+    assert b["si"] == pytest.approx(0.93)
+    assert b["fd"] == pytest.approx(27.0)
+    assert b["fs"] == pytest.approx(30.0)
+    assert b["period"] == pytest.approx(228.0)
+    assert b["jump"] == pytest.approx(3.0)
+    assert b["t"] == 1_700_000_300
+    assert b["fill"] == pytest.approx(0.5)
+    assert b["reserved"] == 0
+    b = _decode_block(result_block(st.results[1], code=verdict_code(st.results[1]),
+                                   word_order=word_order), word_order)
+    assert (b["code"], b["seq"]) == (2, 1)
+    assert math.isnan(b["fs"])
+    assert math.isnan(b["fd"])
+    assert result_block(None, code=0).tolist() == [0] * 20
+    st.set_stale(np.array([0]), True)
+    assert verdict_code(st.results[0], bool(st.stale[0])) == 6
+
+
+def test_the_layout_fits_the_block_and_the_codes_are_the_documented_ones() -> None:
+    used = [r for f in LAYOUT for r in range(f.offset, f.offset + f.width)]
+    assert len(used) == len(set(used)) and max(used) < RESULT_BLOCK_SIZE == 20
+    assert [(f.name, f.offset, f.type) for f in LAYOUT][:2] == [("code", 0, "uint16"),
+                                                              ("seq", 1, "uint16")]
+    assert VERDICT_CODES == {"none": 0, "not_oscillating": 1, "no_stiction": 2,
+                             "undetermined": 3, "stiction": 4, "bad_data": 5, "stale": 6,
+                             "valve_not_responding": 7}
+    st = _store()
+    assert [verdict_code(r) for r in st.results] == [4, 2, 0]
+    assert verdict_code(st.results[0], stale=True) == 6
+
+
+def test_sequence_numbers_wrap_and_negative_times_read_zero() -> None:
+    st = ResultStore(["A"])
+    for _ in range(3):
+        st.set_result(0, NO_KP, t=-5.0, window_fill=0.0, samples=0)
+    res = st.results[0]
+    assert res is not None
+    wrapped = type(res)(res.assessment, 65537, res.t, res.window_fill, res.samples)
+    b = decode_block(result_block(wrapped, code=2))
+    assert b["seq"] == 1 and b["timestamp"] == 0
+    assert math.isnan(b["fd_percent"])
+
+
+def test_overlapping_blocks_within_a_unit_id_only() -> None:
+    blocks = [("A", 1, 0), ("B", 1, 10), ("C", 2, 0), ("D", 2, 20), ("E", 1, 40), ("F", 1, 59)]
+    assert list(overlapping_blocks(blocks)) == [("B", 1, 10, "A", 0), ("F", 1, 59, "E", 40)]
+    assert list(overlapping_blocks([("A", 1, 0), ("B", 1, 20)])) == []
+
+
+def test_unit_images_hold_every_block() -> None:
+    images = unit_images({1: [0, 100], 2: []})
+    assert len(images[1]) == 120 and len(images[2]) == RESULT_BLOCK_SIZE
+    assert not images[1].any()
