@@ -190,7 +190,7 @@ def analyze_details(
     si_test = "si_pv" if integrating else "si_op"
     si = next(e.value for e in found.evidence if e.test == si_test)
     base: dict[str, Any] = {
-        "oscillating": cycle.cycling,
+        "oscillating": cycle.regular,
         "period_s": None if cycle.period is None else cycle.period * ts_,
         "stiction_index": si, "confidence": conf, "evidence": found.evidence}
     quant: Quantification | None = None
@@ -249,9 +249,12 @@ def _not_stiction(cycle: Cycle, evidence: tuple[Evidence, ...], conf: float
                   ) -> tuple[Verdict, str]:
     """Verdict and reason when the confidence stays under the stiction threshold."""
     voted = [e for e in evidence if e.vote]
-    if not cycle.cycling and conf <= 0.5:
-        src = cycle.op if cycle.source != "PV" else cycle.pv
-        return Verdict.NOT_OSCILLATING, (f"no cycle in OP or PV ({src.osc.reason}); "
+    if not cycle.regular and conf <= 0.5:
+        src = cycle.pv if cycle.source == "PV" else cycle.op
+        what = src.osc.reason if not cycle.cycling else (
+            f"a cycle of {cycle.period or 0:.0f} samples, but irregular "
+            f"(regularity {src.osc.regularity:.2f} <= 1)")
+        return Verdict.NOT_OSCILLATING, (f"no regular oscillation in OP or PV ({what}); "
                                          f"confidence of stiction {conf:.2f}")
     if conf <= NO_STICTION_CONFIDENCE:
         return Verdict.NO_STICTION, (f"not stiction (confidence {conf:.2f}; "
@@ -299,7 +302,11 @@ def _size(op: FloatArray, pv: FloatArray, cycle: Cycle, found: Findings, *,
         if quant.reason is not None:
             why = quant.reason
         elif multi:
-            why = "the valve jumps more than once per half cycle"
+            # not a pure stick-slip cycle: no size is better than a wrong one (the other
+            # methods read the same cycle)
+            return _Size(None, None, None, quant.cycles_used,
+                         "the valve jumps more than once per half cycle, so the cycle is not "
+                         "one stick-slip limit cycle to size", multi, warn, quant)
         elif quant.poor_fit:
             why = (f"PV between the jumps does not follow one valve jump's response in "
                    f"{quant.poor_fit} half cycles")

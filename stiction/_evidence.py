@@ -12,7 +12,9 @@ oscillation the shape tests look at, :func:`gather` runs every test and returns 
     or slow loop: both are run whatever the process type, so a level loop analysed as
     self-regulating still shows its triangle.
 ``bicoherence``
-    Choudhury et al. (2004) nonlinearity of PV (:mod:`._bicoherence`).
+    Choudhury et al. (2004) nonlinearity of PV (:mod:`._bicoherence`), on cycling windows
+    only: it diagnoses an oscillation, and reads a set-point step's transient as
+    nonlinear.
 ``horch``
     Horch (1999) odd or even OP-PV cross-correlation, or for an integrating loop Horch
     (2000) PV curvature (:mod:`._horch`).
@@ -87,7 +89,7 @@ class Cycle:
     pv: Signal
     period: float | None
     source: str
-    regular: bool  # Thornhill's regularity > 1 on the source signal
+    regular: bool  # Thornhill's regularity > 1 on OP or PV: what ``oscillating`` reports
 
     @property
     def cycling(self) -> bool:
@@ -119,10 +121,11 @@ def find_cycle(op: FloatArray, pv: FloatArray, *, integrating: bool) -> Cycle:
     """The cycle of a window (module doc); OP's for a self-regulating loop, PV's for an
     integrating one, the other signal's when that one does not cycle."""
     so, sp = _signal(op), _signal(pv)
+    regular = any(s.osc.oscillating and s.osc.regularity > 1.0 for s in (so, sp))
     order = [("PV", sp), ("OP", so)] if integrating else [("OP", so), ("PV", sp)]
     for name, s in order:
         if s.osc.oscillating and s.osc.period is not None:
-            return Cycle(so, sp, s.osc.period, name, s.osc.regularity > 1.0)
+            return Cycle(so, sp, s.osc.period, name, regular)
     return Cycle(so, sp, None, "", False)
 
 
@@ -194,7 +197,9 @@ def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool, t
         "fast_cycle": fast_cycle(_unstepped(op), _unstepped(pv)).evidence(),
         "si_op": _si("si_op", cycle.op, p),
         "si_pv": _si("si_pv", cycle.pv, p),
-        "bicoherence": bicoherence_test(cycle.pv.x, period=horch_period).evidence(),
+        "bicoherence": (bicoherence_test(cycle.pv.x, period=horch_period).evidence()
+                        if horch_period is not None
+                        else Evidence("bicoherence", None, 0, no_cycle)),
         "horch": (horch_test(cycle.op.x, cycle.pv.x, period=horch_period,
                              integrating=integrating).evidence() if p is not None
                   else Evidence("horch", None, 0, no_cycle)),

@@ -33,7 +33,10 @@ Causes (``CAUSES``), the answer a plant engineer wants:
     process dynamics.
 ``propagated``
     a perfect valve whose load is the oscillation of another loop with a sticky valve
-    (its PV, through a first-order lag): the stiction limit cycle arrives from elsewhere.
+    (its PV, through a first-order lag of 5-100 % of that cycle's period: the path through
+    headers, vessels and exchangers filters it, so the further from its source the more
+    sinusoidal an oscillation, Thornhill et al. 2003): the stiction limit cycle arrives
+    from elsewhere.
 ``noise``
     a perfect valve with loads, setpoint changes and noise, nothing periodic.
 ``ramp-load``
@@ -390,11 +393,15 @@ def _upstream(draws: Sequence[_Draw], seed: int) -> list[FloatArray]:
         ups.append(up)
     n = max(u.n_sim for u in ups)
     loads = np.stack([0.003 * _filtered(u.rng, n, 50.0) for u in ups])
-    _, pv, _ = _simulate(ups, loads, seed + 7919)
+    _, pv, vp = _simulate(ups, loads, seed + 7919)
     out = []
-    for d, u, y in zip(draws, ups, pv, strict=True):
+    for d, u, y, v in zip(draws, ups, pv, vp, strict=True):
         x = y[: u.n_sim] - y[: u.n_sim].mean()
-        c = math.exp(-1.0 / (d.ts * _loguniform(d.rng, 0.1, 10.0) / d.ts_sim))
+        slips = _slips(v[: u.n_sim])
+        period = 2.0 * float(np.median(np.diff(slips))) if slips.size > 2 else 50.0
+        # the path from the sticky loop (pipes, vessels, exchangers) filters its cycle:
+        # a lag of 5 % (a shared header) to 100 % (a vessel) of the cycle's period
+        c = math.exp(-1.0 / (period * _loguniform(d.rng, 0.05, 1.0)))
         x = signal.lfilter([1.0 - c], [1.0, -c], x)
         amp = 0.01 * d.rng.uniform(1.0, 5.0) / max(float(np.std(x)) * math.sqrt(2.0), 1e-12)
         out.append(np.asarray(amp * x, dtype=np.float64))

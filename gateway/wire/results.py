@@ -80,8 +80,9 @@ LAYOUT: tuple[Field, ...] = (
     Field("jump_percent", 10, "float32"),
     Field("timestamp", 12, "uint32"),  # Unix seconds of the assessment
     Field("window_fill", 14, "float32"),  # 0-1
+    Field("confidence", 16, "float32"),  # 0-1, confidence of stiction; NaN when not assessed
 )
-"""Registers +16..+19 are reserved (read as 0)."""
+"""Registers +18..+19 are reserved (read as 0)."""
 
 
 class LoopResultLike(Protocol):
@@ -119,7 +120,7 @@ def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
             "stiction_index": _num(a.stiction_index), "fd_percent": _num(a.fd, 100.0),
             "fs_percent": _num(a.fs, 100.0), "period_s": _num(a.period_s),
             "jump_percent": _num(a.jump, 100.0), "timestamp": max(0, int(result.t)),
-            "window_fill": result.window_fill}
+            "window_fill": result.window_fill, "confidence": _num(a.confidence)}
 
 
 def result_block(result: LoopResultLike | None, *, code: int, word_order: str = "big"
@@ -136,7 +137,8 @@ def result_block(result: LoopResultLike | None, *, code: int, word_order: str = 
 
 def decode_block(registers: Iterable[int] | NDArray[np.uint16], word_order: str = "big"
                  ) -> dict[str, float]:
-    """The field values of a block read from the server (``reserved``: sum of +16..+19)."""
+    """The field values of a block read from the server (``reserved``: sum of the registers
+    after the last field)."""
     regs = np.asarray(list(registers) if not isinstance(registers, np.ndarray) else registers,
                       dtype=np.uint16)
     out = {f.name: float(decode_registers(regs[f.offset:f.offset + f.width], f.type,

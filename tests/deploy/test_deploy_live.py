@@ -194,12 +194,14 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
                       prom, sim, gateway)  # fmt: skip
             logs.append(prom.log_path)
             t0 = time.monotonic()
-            # diagnosed and sized: a stick-slip episode can be called stiction before the
-            # window holds the cycles that fd and fs are estimated from
+            # diagnosed and sized from its limit cycle: stick-slip episodes can be called
+            # stiction (and sized roughly) before the window holds the cycles that the
+            # period, SI and fs are read from
             wait_for(
                 f"{STICKY} diagnosed with stiction and sized, seen by Prometheus",
                 lambda: prom.query(
-                    f'stiction_loop_fd_ratio{{loop="{STICKY}"}} and on (loop) '
+                    f'stiction_loop_fs_ratio{{loop="{STICKY}"}} and on (loop) '
+                    f'stiction_loop_oscillation_period_seconds{{loop="{STICKY}"}} and on (loop) '
                     f'(stiction_loop_verdict{{loop="{STICKY}", verdict="stiction"}} == 1)'
                 )["data"]["result"],
                 STICTION_DEADLINE_S,

@@ -17,7 +17,7 @@ from stiction import Assessment, Verdict
 
 STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
                     stiction_index=0.93, fd=0.27, fs=0.30, jump=0.03, fd_op=27.0, fs_op=30.0,
-                    cycles_used=6)
+                    cycles_used=6, confidence=0.91)
 NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0,
                    stiction_index=0.01)
 
@@ -58,6 +58,8 @@ def test_metrics_read_the_store() -> None:
     assert v("stiction_loop_oscillation_period_seconds", loop="FIC101") == 228.0
     assert v("stiction_loop_last_assessment_timestamp_seconds", loop="FIC101") == 1_700_000_300
     assert v("stiction_loop_window_fill_ratio", loop="FIC101") == 0.5
+    assert v("stiction_loop_confidence_ratio", loop="FIC101") == pytest.approx(0.91)
+    assert v("stiction_loop_confidence_ratio", loop="FIC401") is None  # none given
     assert v("stiction_loop_op_percent", loop="FIC101") == 51.5
     assert v("stiction_loop_pv", loop="FIC101") == pytest.approx(50.2)
     assert v("stiction_loop_verdict", loop="FIC101", verdict="stiction") == 1.0

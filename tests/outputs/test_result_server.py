@@ -46,7 +46,8 @@ def _decode_block(regs: list[int] | np.ndarray, word_order: str = "big") -> dict
             "period": f[3], "jump": f[4],
             "t": decode_registers(r[12:14], "uint32", word_order)[0],
             "fill": decode_registers(r[14:16], "float32", word_order)[0],
-            "reserved": int(np.abs(r[16:20]).sum())}
+            "confidence": decode_registers(r[16:18], "float32", word_order)[0],
+            "reserved": int(np.abs(r[18:20]).sum())}
 
 
 @contextlib.asynccontextmanager

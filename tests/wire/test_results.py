@@ -22,7 +22,7 @@ from stiction import Assessment, Verdict
 
 STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
                     stiction_index=0.93, fd=0.27, fs=0.30, jump=0.03, fd_op=27.0, fs_op=30.0,
-                    cycles_used=6)
+                    cycles_used=6, confidence=0.91)
 NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0,
                    stiction_index=0.01)
 
@@ -40,7 +40,7 @@ def _decode_block(regs: np.ndarray, word_order: str = "big") -> dict[str, float]
     return {"code": b["code"], "seq": b["seq"], "si": b["stiction_index"],
             "fd": b["fd_percent"], "fs": b["fs_percent"], "period": b["period_s"],
             "jump": b["jump_percent"], "t": b["timestamp"], "fill": b["window_fill"],
-            "reserved": b["reserved"]}
+            "confidence": b["confidence"], "reserved": b["reserved"]}
 
 
 @pytest.mark.parametrize("word_order", ["big", "little"])
@@ -57,12 +57,14 @@ def test_result_block_layout(word_order: str) -> None:
     assert b["jump"] == pytest.approx(3.0)
     assert b["t"] == 1_700_000_300
     assert b["fill"] == pytest.approx(0.5)
+    assert b["confidence"] == pytest.approx(0.91)
     assert b["reserved"] == 0
     b = _decode_block(result_block(st.results[1], code=verdict_code(st.results[1]),
                                    word_order=word_order), word_order)
     assert (b["code"], b["seq"]) == (2, 1)
     assert math.isnan(b["fs"])
     assert math.isnan(b["fd"])
+    assert math.isnan(b["confidence"])  # assessed before confidence existed
     assert result_block(None, code=0).tolist() == [0] * 20
     st.set_stale(np.array([0]), True)
     assert verdict_code(st.results[0], bool(st.stale[0])) == 6

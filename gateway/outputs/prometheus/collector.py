@@ -41,6 +41,8 @@ class StoreCollector(Collector):
         period = fam("oscillation_period_seconds", "Oscillation period of the loop.")
         ts = fam("last_assessment_timestamp_seconds", "Unix time of the latest assessment.")
         fill = fam("window_fill_ratio", "Fraction of the window holding good samples.")
+        conf = fam("confidence_ratio", "Confidence of stiction in the latest assessment, 0-1 "
+                   "(the tests' weighted vote; >= 0.7 is a stiction verdict).")
         op = fam("op_percent", "Latest controller output, percent of valve span.")
         pv = fam("pv", "Latest process variable, process units.")
         verdict = GaugeMetricFamily(
@@ -63,7 +65,8 @@ class StoreCollector(Collector):
             _add(period, name, a.period_s)
             _add(ts, name, res.t)
             _add(fill, name, res.window_fill)
-        yield from (si, fd, fs, jump, period, verdict, ts, fill, op, pv)
+            _add(conf, name, a.confidence)
+        yield from (si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv)
 
 
 def _add(family: GaugeMetricFamily, loop: str, value: float | None) -> None:
