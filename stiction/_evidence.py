@@ -78,6 +78,7 @@ class Signal:
     x: FloatArray
     osc: Oscillation
     significance: float
+    unstepped: FloatArray  # baseline and line removed, whichever variant ``x`` is
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,14 +106,13 @@ def _unstepped(x: FloatArray) -> FloatArray:
 
 def _signal(x: FloatArray) -> Signal:
     best: Signal | None = None
-    variants = [detrend(x)]
-    if x.size >= 48:
-        variants.append(_unstepped(x))
+    unstepped = _unstepped(x)
+    variants = [detrend(x), unstepped] if x.size >= 48 else [unstepped]
     for y in variants:
         osc = detect_oscillation(y, min_regularity=MIN_REGULARITY)
         sig = osc.significance if osc.oscillating else -1.0
         if best is None or sig > best.significance:
-            best = Signal(y, osc, sig)
+            best = Signal(y, osc, sig, unstepped)
     assert best is not None
     return best
 
@@ -194,7 +194,7 @@ def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool, t
         "ellipse": ell.evidence() if ell is not None else Evidence("ellipse", None, 0, no_cycle),
         "kano": kano.evidence(),
         "hammerstein": ham.evidence(),
-        "fast_cycle": fast_cycle(_unstepped(op), _unstepped(pv)).evidence(),
+        "fast_cycle": fast_cycle(cycle.op.unstepped, cycle.pv.unstepped).evidence(),
         "si_op": _si("si_op", cycle.op, p),
         "si_pv": _si("si_pv", cycle.pv, p),
         "bicoherence": (bicoherence_test(cycle.pv.x, period=horch_period).evidence()

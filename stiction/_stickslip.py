@@ -98,14 +98,39 @@ def _means(x: FloatArray, m: int) -> tuple[FloatArray, FloatArray]:
 
 
 def _candidates(a: FloatArray, thr: float, m: int) -> list[int]:
-    """Positions of the largest ``a`` above ``thr``, at least ``2 m`` apart."""
+    """Positions of the largest ``a`` above ``thr``, at least ``2 m`` apart (greedy, largest
+    first: each pick blocks its neighbourhood)."""
+    above = np.flatnonzero(a >= thr)
+    blocked = np.zeros(a.size, dtype=bool)
     picked: list[int] = []
-    for i in np.argsort(-a).tolist():
-        if a[i] < thr:
-            break
-        if all(abs(i - j) >= 2 * m for j in picked):
+    for i in above[np.argsort(-a[above], kind="stable")].tolist():
+        if not blocked[i]:
             picked.append(i)
+            blocked[max(0, i - 2 * m + 1) : i + 2 * m] = True
     return sorted(picked)
+
+
+def _still_since(ys: FloatArray, end: int, level: float, band: float) -> int:
+    """First index of the stretch ending at ``end`` (inclusive) in which ``ys`` stays within
+    ``band`` of ``level``; searched backwards in growing chunks, so a short stuck phase
+    costs little in a long window."""
+    hi = end + 1
+    width = 64
+    while hi > 0:
+        lo = max(0, hi - width)
+        away = np.flatnonzero(np.abs(ys[lo:hi] - level) > band)
+        if away.size:
+            return lo + int(away[-1]) + 1
+        hi, width = lo, 4 * width
+    return 0
+
+
+def _spread(x: FloatArray) -> float:
+    """The 10-90 % spread of ``x`` (nearest-rank; cheaper than ``np.percentile``)."""
+    k = x.size - 1
+    lo, hi = round(0.1 * k), round(0.9 * k)
+    part = np.partition(x, (lo, hi))
+    return float(part[hi] - part[lo])
 
 
 def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
@@ -142,8 +167,7 @@ def _episodes(op: FloatArray, pv: FloatArray, m: int) -> list[Episode]:
         d = float(dy[i])
         pre = float((cy[at] - cy[at - m]) / m)
         # the stuck phase: back from the slip while PV stays near its pre-slip level
-        away = np.flatnonzero(np.abs(ys[: at - m + 1] - pre) > STUCK_BAND * abs(d))
-        start = int(away[-1]) + 1 if away.size else 0
+        start = _still_since(ys, at - m, pre, STUCK_BAND * abs(d))
         # the force was built since OP's last turn: its extreme (furthest from the pre-slip
         # OP) while PV stood still
         end = at - m
@@ -152,8 +176,7 @@ def _episodes(op: FloatArray, pv: FloatArray, m: int) -> list[Episode]:
         stuck = end - lo
         if stuck < 3 * m:
             continue
-        p10, p90 = np.percentile(ys[lo : end + 1], [10, 90])
-        if p90 - p10 > STILL_SPREAD * abs(d):
+        if _spread(ys[lo : end + 1]) > STILL_SPREAD * abs(d):
             continue
         travel = float(us[end] - us[lo])
         path = us[lo : end + 1 : m]

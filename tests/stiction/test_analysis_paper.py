@@ -117,12 +117,9 @@ def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float, see
                      rows=[p for p in PAPER_ROWS if p.case == f"tau={tau:.0f}"])
     (r,) = rows
     a = r.assessment
-    if a.verdict == Verdict.STICTION:
-        assert a.fd is not None
-        assert a.fs is not None
-        assert abs(a.fd / 0.18 - 1) < 0.05
-        assert abs(a.fs / 0.20 - 1) < 0.05
-    else:
+    assert not _confidently_wrong(r), a
+    if a.verdict == Verdict.STICTION and a.fd is None:
+        assert a.multi_jump or "not sized" in a.reason
+    if a.verdict != Verdict.STICTION:
         assert a.fd is None
         assert a.fs is None
-        assert a.multi_jump or "SI" in a.reason

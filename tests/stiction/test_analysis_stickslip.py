@@ -48,9 +48,9 @@ def test_stick_slip_episode_is_found() -> None:
     assert a.verdict == Verdict.STICTION, a
     assert {e.test: e.vote for e in a.evidence}["stick_slip"] == 1
     assert "stick_slip" in a.reason
-    # no limit cycle for the paper's method: sized from the OP travel while PV stood still
-    assert a.fd_op is not None
-    assert "no limit cycle to read the jumps from" in a.reason
+    # no limit cycle to size from: one episode's OP travel is not the band
+    assert a.fd_op is None
+    assert "not sized: no limit cycle to read the jumps from" in a.reason
 
 
 def test_jump_with_an_op_step_is_a_response_not_a_slip() -> None:
