@@ -15,10 +15,11 @@ and to ship in the package (:mod:`stiction._weights`), too small to learn any on
 
 Data: the plant records (grouped by tag), the Tennessee Eastman runs (by run) and the
 realistic simulations (by loop), the real data sets weighing 0.4 each and the simulations
-0.2 (``DATASET_WEIGHT``), within each the sticky and the other windows half each (so the confidence is for even prior odds), within the
-plant records each tag equally (23 of 35 sticky records are one valve). Scores are
-cross-validated by group, never by record: five folds of groups, and leave-one-data-set-out
-(fit on two, score the third), which is the nearest we have to loops from elsewhere.
+0.2 (``DATASET_WEIGHT``), within each the sticky and the other windows half each (so the
+confidence is for even prior odds), within the plant records each tag equally (23 of 35
+sticky records are one valve). Scores are cross-validated by group, never by record: five
+folds of groups, and leave-one-data-set-out (fit on two, score the third), which is the
+nearest we have to loops from elsewhere.
 
 ``python -m bench calibrate`` prints the held-out folds; ``python -m bench calibrate
 --write`` also rewrites ``stiction/_weights.py`` from the fit on all data.
