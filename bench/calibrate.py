@@ -21,7 +21,7 @@ sticky records are one valve). Scores are cross-validated by group, never by rec
 folds of groups, and leave-one-data-set-out (fit on two, score the third), which is the
 nearest we have to loops from elsewhere.
 
-``python -m bench calibrate`` prints the held-out folds; ``python -m bench calibrate
+``python -m bench calibrate`` prints the held-out folds; ``python -m bench.calibrate
 --write`` also rewrites ``stiction/_weights.py`` from the fit on all data.
 """
 
