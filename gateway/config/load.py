@@ -6,7 +6,9 @@ the section (``device plc1``, ``loop FIC101``, ``gateway``...) and the key.
 
 Protocol-specific keys (a Modbus device's ``host``, a point's ``type``...) are parsed by the
 protocol's plugin module, found by name in :mod:`gateway.config.plugins`; the core keys are
-parsed here, all with the one validator (:mod:`gateway.config.schema`).
+parsed here, all with the one validator (:mod:`gateway.config.schema`). Loops may also come
+from tag lists (``loops_csv``, :mod:`gateway.config.tags`); loops without ``result_address``
+get one by the rule of :mod:`gateway.config.addresses`.
 """
 
 from __future__ import annotations
