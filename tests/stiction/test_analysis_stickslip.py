@@ -92,7 +92,12 @@ def test_slow_slip_after_an_op_reversal_is_found() -> None:
     (e,) = ss.episodes
     assert 700 <= e.at <= 715
     assert e.op_travel == pytest.approx(2.0, abs=0.3)
-    assert analyze(op, pv, ts=10.0).verdict == Verdict.STICTION
+    # one episode is a hint, not a vote: a load step can do the same once
+    a = analyze(op, pv, ts=10.0)
+    ev = next(x for x in a.evidence if x.test == "stick_slip")
+    assert ev.vote == 0
+    assert ev.note.startswith("one stick-slip episode")
+    assert a.verdict != Verdict.STICTION
 
 
 def test_pv_still_and_op_still_is_not_stick_slip() -> None:
