@@ -168,7 +168,7 @@ from ._assessment import Evidence
 from ._detect import noise_sd
 from ._errors import ParameterError
 from ._oscillation import detect_oscillation
-from ._validate import FloatArray, median
+from ._validate import FloatArray, dot, median
 
 __all__ = ["HammersteinFit", "controller_sign", "hammerstein_test"]
 
@@ -620,7 +620,7 @@ def controller_sign(u: FloatArray, y: FloatArray, period: float) -> float:
     du = u[lag:] - u[:-lag]
     cy = np.concatenate(([0.0], np.cumsum(y - y.mean())))
     my = (cy[lag + 1 :] - cy[1:-lag]) / lag  # mean PV over (t - lag, t]
-    c = float(np.dot(du - du.mean(), my))
+    c = float(dot(du - du.mean(), my))
     return 0.0 if c == 0 else (-1.0 if c > 0 else 1.0)
 
 
@@ -734,14 +734,14 @@ def _fit_residual(y: FloatArray, v: FloatArray, t: FloatArray) -> FloatArray:
     to the constant and to each other: three small sums, no LAPACK call)."""
     tc = t - t.mean()
     vc = v - v.mean()
-    stt = float(np.dot(tc, tc))
-    bt = float(np.dot(vc, tc)) / stt if stt > 0 else 0.0
+    stt = float(dot(tc, tc))
+    bt = float(dot(vc, tc)) / stt if stt > 0 else 0.0
     yc = y - y.mean()
-    yt = float(np.dot(yc, tc)) / stt if stt > 0 else 0.0
+    yt = float(dot(yc, tc)) / stt if stt > 0 else 0.0
     yc = yc - yt * tc
     vc = vc - bt * tc
-    syy = float(np.dot(yc, yc))
-    g = float(np.dot(yc, vc)) / syy if syy > 1e-12 * max(float(np.dot(y, y)), 1e-300) else 0.0
+    syy = float(dot(yc, yc))
+    g = float(dot(yc, vc)) / syy if syy > 1e-12 * max(float(dot(y, y)), 1e-300) else 0.0
     return np.asarray(vc - g * yc)
 
 
@@ -752,8 +752,8 @@ def _effective_n(target: _Target, y: FloatArray, lag: int) -> float:
     t = np.arange(lag, m, dtype=np.float64)
     vv = target.cross[: m - lag, int(np.flatnonzero(target.lags == lag)[0])]
     r = _fit_residual(yy, vv, t)
-    den = float(np.dot(r, r))
-    rho = float(np.dot(r[1:], r[:-1])) / den if den > 0 else 0.0
+    den = float(dot(r, r))
+    rho = float(dot(r[1:], r[:-1])) / den if den > 0 else 0.0
     rho = min(max(rho, 0.0), 0.999)
     return float(r.size * (1.0 - rho) / (1.0 + rho))
 
