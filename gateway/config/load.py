@@ -150,6 +150,8 @@ GATEWAY_KEYS: dict[str, Callable[[Any], Any]] = {
     "analysis_workers": s.integer(0, 256),
     "persist_interval_s": s.number(positive=True),
     "reconnect_max_s": s.number(positive=True),
+    "site": s.label_value,
+    "area": s.label_value,
 }
 METRICS_KEYS: dict[str, Callable[[Any], Any]] = {"listen": s.listen_address}
 SERVER_KEYS: dict[str, Callable[[Any], Any]] = {

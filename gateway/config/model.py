@@ -47,6 +47,10 @@ class GatewaySettings:
     analysis_workers: int = 0  # worker processes; 0 = one per core less one (at least 1)
     persist_interval_s: float = 300.0  # wall seconds between state-file writes (and at exit)
     reconnect_max_s: float = 30.0  # wall seconds, cap of the jittered reconnect backoff
+    # fleet identity (docs/fleet.md): the `site` and `area` labels of stiction_build_info;
+    # the site's Prometheus puts the same labels on every series (external_labels)
+    site: str | None = None
+    area: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)

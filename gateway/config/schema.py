@@ -13,11 +13,12 @@ reader for their own keys: this is the one validator.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["MISSING", "Problems", "Section", "choice", "entries", "integer", "listen_address",
-           "mapping", "nonempty_list", "number", "number_pair", "string"]
+__all__ = ["MISSING", "Problems", "Section", "choice", "entries", "integer", "label_value",
+           "listen_address", "mapping", "nonempty_list", "number", "number_pair", "string"]
 
 T = TypeVar("T")
 
@@ -177,6 +178,19 @@ def listen_address(value: Any) -> tuple[str, int]:
     if not host or not port.isdigit() or not 0 <= int(port) <= 65535:
         raise ValueError("must be 'host:port' with a port in 0..65535")
     return host, int(port)
+
+
+_LABEL_VALUE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+
+
+def label_value(value: Any) -> str:
+    """A name that becomes a metric label value (``gateway.site``, ``gateway.area``): 1-64
+    letters, digits, ``_``, ``.`` or ``-``, starting with a letter or digit (safe in a
+    Grafana regex selector and a file name)."""
+    if not isinstance(value, str) or not _LABEL_VALUE.fullmatch(value):
+        raise ValueError("must be 1-64 letters, digits, '_', '.' or '-', starting with a "
+                         "letter or digit")
+    return value
 
 
 def entries(top: Section, key: str, label: str) -> Iterator[tuple[int, Any, Section]]:

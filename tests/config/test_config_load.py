@@ -143,3 +143,19 @@ def test_check_config_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
         f"{bad}: loop FIC101: unknown key 'colour'",
         f"{bad}: loop FIC102: key 'device': unknown device 'plc9' (devices: plc1)",
     ]
+
+
+def test_site_and_area_are_label_values() -> None:
+    """gateway.site / gateway.area become label values (docs/fleet.md): letters, digits,
+    '_', '.', '-', at most 64, no spaces; both optional."""
+    ok = parse_config(cfg(gateway={"site": "plant-north_2", "area": "U3.crude"}), "gw.yaml")
+    assert (ok.gateway.site, ok.gateway.area) == ("plant-north_2", "U3.crude")
+    assert parse_config(cfg(gateway={"area": "U3"}), "gw.yaml").gateway.site is None
+    rule = "must be 1-64 letters, digits, '_', '.' or '-', starting with a letter or digit"
+    assert problems(cfg(gateway={"site": "plant north", "area": 7})) == [
+        f"gw.yaml: gateway: key 'site': {rule}, was 'plant north'",
+        f"gw.yaml: gateway: key 'area': {rule}, was 7",
+    ]
+    assert problems(cfg(gateway={"site": "-x"}))[0].endswith("was '-x'")
+    assert problems(cfg(gateway={"site": "x" * 65}))
+    assert problems(cfg(gateway={"site": ""}))

@@ -3,6 +3,8 @@ and the exposition linted by promtool."""
 
 from __future__ import annotations
 
+import asyncio
+import dataclasses
 import os
 import shutil
 import subprocess
@@ -11,8 +13,10 @@ import numpy as np
 import pytest
 from prometheus_client import CollectorRegistry, generate_latest
 
+from gateway.config import parse_config
 from gateway.core.store import ResultStore
-from gateway.outputs.prometheus import GatewayMetrics, StoreCollector
+from gateway.outputs.base import Binding
+from gateway.outputs.prometheus import GatewayMetrics, PrometheusSink, StoreCollector
 from stiction import Assessment, Verdict
 
 STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
@@ -91,3 +95,31 @@ def test_promtool_check_metrics() -> None:
     problems = (res.stdout + res.stderr).decode().strip()
     assert res.returncode == 0, problems
     assert problems == ""
+
+
+def test_build_info_names_the_site_and_area_of_the_config() -> None:
+    """gateway.site and gateway.area (docs/fleet.md) label stiction_build_info, and follow a
+    reload; unset ones are no labels at all (not empty ones)."""
+    base = {"devices": [{"name": "plc1", "protocol": "modbus", "host": "127.0.0.1"}],
+            "loops": [{"name": "FIC101", "device": "plc1", "op": {"address": 0,
+                       "type": "float32"}, "pv": {"address": 2, "type": "float32"}}]}
+    plain = parse_config(base)
+    north = parse_config({**base, "gateway": {"site": "plant-north", "area": "unit.3"}})
+    south = parse_config({**base, "gateway": {"site": "plant_south"}})
+    assert (north.gateway.site, north.gateway.area) == ("plant-north", "unit.3")
+    assert (plain.gateway.site, plain.gateway.area) == (None, None)
+    reg = CollectorRegistry()
+    sink = PrometheusSink(reg, GatewayMetrics(reg), serve_http=False)
+    store = ResultStore(["FIC101"])
+
+    def info(config: object) -> dict[str, str]:
+        binding = Binding(config, (), store, None)  # type: ignore[arg-type]
+        asyncio.run(sink.bind(binding))
+        (sample,) = [s for m in reg.collect() if m.name == "stiction_build" for s in m.samples]
+        assert sample.value == 1.0
+        return dict(sample.labels)
+
+    assert info(plain) == {"version": "0.1.0"}
+    assert info(north) == {"version": "0.1.0", "site": "plant-north", "area": "unit.3"}
+    assert info(south) == {"version": "0.1.0", "site": "plant_south"}  # area gone
+    assert dataclasses.replace(south.gateway, site=None) == plain.gateway

@@ -58,6 +58,7 @@ class PrometheusSink:
             self.registry.register(self.collector)
         else:
             self.collector.store = binding.store
+        self.metrics.set_identity(cfg.gateway.site, cfg.gateway.area)
         names = {d.name for d in cfg.devices}
         for name in sorted(self.devices - names):
             self.metrics.remove_device(name)

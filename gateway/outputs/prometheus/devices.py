@@ -34,8 +34,15 @@ class GatewayMetrics:
             f"{PREFIX}_analysis_duration_seconds", "Worker time to analyse one loop window.",
             buckets=(0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5),
             registry=registry)
-        self.build = Info(f"{PREFIX}_build", "Version of the gateway.", registry=registry)
-        self.build.info({"version": __version__})
+        self.build = Info(f"{PREFIX}_build", "Version of the gateway, and its site and area "
+                          "(gateway.site, gateway.area) where the config names them.",
+                          registry=registry)
+        self.set_identity(None, None)
+
+    def set_identity(self, site: str | None, area: str | None) -> None:
+        """``stiction_build_info``'s labels: the version, and ``site``/``area`` if set."""
+        labels = {"version": __version__, "site": site, "area": area}
+        self.build.info({k: v for k, v in labels.items() if v})
 
     def add_device(self, name: str) -> None:
         """Create a device's series at zero so they exist before the first error."""
