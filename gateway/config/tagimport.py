@@ -21,7 +21,7 @@ from ..errors import ConfigError
 from .load import parse_config
 from .tags import TagTable, loop_mapping, read_tag_file
 
-__all__ = ["ImportResult", "import_tags"]
+__all__ = ["ImportResult", "guessed_devices", "import_tags", "read_yaml"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,12 +39,12 @@ def import_tags(csv_path: str | Path, config: str | Path | None = None) -> Impor
     table = read_tag_file(csv_path)
     if config is not None:
         source = str(config)
-        data = _read_yaml(config)
+        data = read_yaml(config)
         if not isinstance(data, dict):
             parse_config(data, source)  # raises ConfigError: what is wrong with it
         data.pop("loops_csv", None)
     else:
-        data = {"devices": _guessed_devices(table)}
+        data = {"devices": guessed_devices(table)}
         source = str(csv_path)
     protocols = {d.get("name"): d.get("protocol") for d in data.get("devices") or []
                  if isinstance(d, dict)}
@@ -66,7 +66,7 @@ def import_tags(csv_path: str | Path, config: str | Path | None = None) -> Impor
     return ImportResult(text, problems, bad, len(loops))
 
 
-def _read_yaml(path: str | Path) -> Any:
+def read_yaml(path: str | Path) -> Any:
     try:
         return yaml.safe_load(Path(path).read_text(encoding="utf-8"))
     except OSError as exc:
@@ -75,7 +75,7 @@ def _read_yaml(path: str | Path) -> Any:
         raise ConfigError([f"{path}: invalid YAML: {str(exc).replace(chr(10), ' ')}"]) from None
 
 
-def _guessed_devices(table: TagTable) -> list[dict[str, Any]]:
+def guessed_devices(table: TagTable) -> list[dict[str, Any]]:
     modbus: dict[str, bool] = {}  # device -> no op/pv cell looks like a node id
     for row in table.rows:
         name = row.cells.get("device")

@@ -79,6 +79,7 @@ class TagTable:
     source: str
     rows: list[TagRow]
     file_problems: list[str] = dataclasses.field(default_factory=list)
+    columns: list[str] = dataclasses.field(default_factory=list)  # the header's, in order
 
     @property
     def bad_lines(self) -> list[int]:
@@ -107,6 +108,7 @@ def read_tag_text(text: str, source: str) -> TagTable:
     head_line, head = lines[0]
     delimiter = max(",;\t", key=head.count)
     header = [c.strip().lower() for c in next(csv.reader([head], delimiter=delimiter))]
+    table.columns = list(dict.fromkeys(c for c in header if c in COLUMNS))
     where = f"{source}: line {head_line}"
     for col in dict.fromkeys(header):
         if col not in COLUMNS:

@@ -1,5 +1,6 @@
 """The onboarding commands of ``stiction-gateway`` (docs/onboarding.md): ``import-tags``,
-``probe``, ``browse`` and ``result-map``: their arguments and what they print.
+``probe``, ``browse`` and ``result-map``, and ``shard`` (docs/fleet.md): their arguments and
+what they print.
 
 :func:`add_commands` adds them to the CLI's parser; :func:`dispatch` runs one. Exit status
 as the CLI's: 0 ok, 1 a device could not be read (or a point came back bad), 2 bad usage
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import load_config
+from ..config.shard import describe, shard_tags
 from ..config.tagimport import import_tags
 from ..core.points import Quality
 from ..errors import ConfigError, DeviceError
@@ -23,7 +25,7 @@ from .probe import format_probe, probe, select_loops
 
 __all__ = ["COMMANDS", "add_commands", "dispatch"]
 
-COMMANDS = ("import-tags", "probe", "browse", "result-map")
+COMMANDS = ("import-tags", "probe", "browse", "result-map", "shard")
 
 
 def add_commands(sub: Any) -> None:
@@ -48,6 +50,16 @@ def add_commands(sub: Any) -> None:
     rmap.add_argument("--config", required=True, metavar="FILE", help="gateway YAML config")
     rmap.add_argument("--csv", action="store_true", help="CSV instead of a table")
     rmap.add_argument("loops", nargs="*", metavar="LOOP", help="only these loops")
+    shd = sub.add_parser("shard", help="split a tag list over N gateways by PLC "
+                                       "(docs/fleet.md)")
+    shd.add_argument("file", metavar="FILE.csv")
+    shd.add_argument("--gateways", type=int, required=True, metavar="N",
+                     help="how many gateways (at most one per PLC)")
+    shd.add_argument("--config", metavar="FILE", help="config with the devices: each "
+                     "gateway's config is this one with its own devices")
+    shd.add_argument("-o", "--output", metavar="DIR", default=".",
+                     help="write NAME-1.yaml, NAME-1.csv, ... here (default: .)")
+    shd.add_argument("--name", default="gateway", help="file name prefix (default: gateway)")
 
 
 def dispatch(args: argparse.Namespace) -> int:
@@ -63,7 +75,20 @@ def dispatch(args: argparse.Namespace) -> int:
         rows = map_rows(config, args.loops)
         sys.stdout.write(map_csv(rows) if args.csv else map_table(rows))
         return 0
+    if args.command == "shard":
+        return _shard(args)
     raise AssertionError(args.command)
+
+
+def _shard(args: argparse.Namespace) -> int:
+    shards, idle = shard_tags(args.file, args.gateways, args.config, args.name)  # or raises
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    for s in shards:
+        (out / s.yaml_name).write_text(s.yaml_text, encoding="utf-8")
+        (out / s.csv_name).write_text(s.csv_text, encoding="utf-8")
+    print("\n".join(describe(shards, args.file, idle)))
+    return 0
 
 
 def _import_tags(args: argparse.Namespace) -> int:
