@@ -51,6 +51,7 @@ GATEWAY = os.environ.get("STICTION_GATEWAY") or str(
     Path(sys.executable).parent / "stiction-gateway"
 )
 STICKY, HEALTHY = "FIC101", "TIC301"
+SITE = "demo-site"
 TIME_SCALE = 40.0  # as `stiction-gateway demo`: 1800 process s of window in 45 s
 ANALYSIS_INTERVAL_S = 120.0  # process seconds: 3 s of wall time
 STICTION_DEADLINE_S = 90.0  # issue 4: the demo shows stiction within 90 s of wall time
@@ -169,6 +170,7 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
         analysis_interval_s=ANALYSIS_INTERVAL_S,
         time_scale=TIME_SCALE,
         state_file=str(work / "gateway.state"),
+        site=SITE,  # stiction_build_info{site}: the dashboards' $site variable has a value
     )
     gw_cfg["metrics"]["listen"] = f"127.0.0.1:{metrics_port}"
     gw_cfg["modbus_server"]["listen"] = f"127.0.0.1:{result_port}"

@@ -227,13 +227,43 @@ def test_loop_dashboard_is_driven_by_the_loop_variable() -> None:
 
 def test_fleet_dashboard_panels() -> None:
     d = load_dashboards()["stiction-fleet.json"]
-    titles = {p["title"] for p in iter_panels(d["panels"])}
+    panels = {p["title"]: p for p in iter_panels(d["panels"])}
     assert {
-        "Loops with stiction, ranked by dynamic friction fd",
+        "50 worst valves, fleet-wide: stiction ranked by fd, with confidence",
+        "Verdicts per site",
+        "Gateway health per site",
+        "Gateways up, by site",
         "Loops per verdict",
         "Devices up",
         "Poll errors by kind",
-    } <= titles
+    } <= set(panels)
+    # issue 17: sites x verdicts, the 50 worst valves by fd with their confidence, and each
+    # site's gateways (up, devices down, the age of its latest scrape)
+    exprs = {title: [t["expr"] for t in p["targets"]] for title, p in panels.items()}
+    assert exprs["Verdicts per site"] == [
+        'sum by (site, verdict) (stiction_loop_verdict{site=~"$site", instance=~"$instance"})']
+    worst = exprs["50 worst valves, fleet-wide: stiction ranked by fd, with confidence"]
+    assert all("topk(50, stiction_loop_fd_ratio{" in e for e in worst)
+    assert worst[1].startswith("stiction_loop_confidence_ratio{")
+    health = " ".join(exprs["Gateway health per site"])
+    assert 'up{job="stiction-gateway"' in health and "stiction_device_up" in health
+    assert "timestamp(" in health
+
+
+def test_both_dashboards_select_site_then_instance() -> None:
+    """$site (label site of stiction_build_info), then $instance within it; every query of
+    both dashboards is restricted to them."""
+    for name, d in load_dashboards().items():
+        variables = [v for v in d["templating"]["list"] if v["type"] == "query"]
+        assert [v["name"] for v in variables][:2] == ["site", "instance"], name
+        site, instance = variables[:2]
+        assert site["query"]["query"] == "label_values(stiction_build_info, site)"
+        assert instance["query"]["query"] == (
+            'label_values(stiction_build_info{site=~"$site"}, instance)')
+        for panel in iter_panels(d["panels"]):
+            for t in panel.get("targets", []):
+                assert 'site=~"$site"' in t["expr"], (name, panel["title"], t["expr"])
+                assert "on (job, instance, loop)" not in t["expr"], (name, panel["title"])
 
 
 def test_no_hard_coded_instances_or_datasources() -> None:

@@ -1,6 +1,7 @@
-"""Helpers for the deployment tests (tests/deploy/test_deploy_*.py): the real tools (promtool,
-prometheus, mbpoll, systemd-analyze), the queries in the dashboards and rules, and a
-throwaway Prometheus server on 127.0.0.1.
+"""Helpers for the deployment tests (tests/deploy/test_*.py): the real tools (promtool,
+prometheus, mbpoll, systemd-analyze, victoria-metrics), the queries in the dashboards and
+rules, and throwaway servers on 127.0.0.1 (:class:`Server`; :class:`Prometheus` here, the
+fleet's VictoriaMetrics and vmalert in fleet_support.py).
 
 A missing tool skips the test locally and fails it under ``CI=true`` (`.ci/run` installs
 the tools from Debian packages, so in CI a missing one is a broken setup, not a reason to skip).
@@ -18,7 +19,7 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -120,12 +121,14 @@ def rule_queries() -> list[Query]:
 _LABEL_VALUES = re.compile(r"^label_values\((?:(?P<match>.+),\s*)?(?P<label>\w+)\)$", re.S)
 
 
-def substitute(expr: str, *, loop: str, instance: str = ".*", rate: str = "1m") -> str:
+def substitute(expr: str, *, loop: str, instance: str = ".*", rate: str = "1m",
+               site: str = ".*") -> str:
     """Replace Grafana's template variables the way Grafana would, with the given values."""
     return (
         expr.replace("$__rate_interval", rate)
         .replace("$__interval", rate)
         .replace("$instance", instance)
+        .replace("$site", site)
         .replace("$loop", loop)
     )
 
@@ -138,59 +141,58 @@ def parse_label_values(expr: str) -> tuple[str | None, str]:
     return m.group("match"), m.group("label")
 
 
-# ------------------------------------------------------------------ Prometheus server
+# ------------------------------------------------------------------ servers
 
 
-class Prometheus:
-    """A real Prometheus on 127.0.0.1 with a temporary config and TSDB."""
+class Server:
+    """A real server binary on 127.0.0.1 (``argv``), ready once ``ready_path`` answers 200,
+    stopped (then killed) on exit, its output in ``log_path``. Subclasses that answer the
+    Prometheus query API (Prometheus, VictoriaMetrics, vmalert's /api/v1/alerts) share
+    :meth:`api` and the query helpers."""
 
-    def __init__(self, workdir: Path, config: dict[str, Any], rule_files: list[Path]) -> None:
-        self.binary = require_tool("prometheus", "prometheus")
+    ready_path = "/-/ready"
+    ready_timeout_s = 20.0
+
+    def __init__(self, workdir: Path, argv: list[str], port: int, name: str) -> None:
         self.workdir = workdir
-        self.port = free_port()
-        self.url = f"http://127.0.0.1:{self.port}"
-        workdir.mkdir(parents=True, exist_ok=True)
-        config = dict(config)
-        config["rule_files"] = [str(p) for p in rule_files]
-        self.config_path = workdir / "prometheus.yml"
-        self.config_path.write_text(yaml.safe_dump(config, sort_keys=False))
-        self.log_path = workdir / "prometheus.log"
+        self.argv = argv
+        self.port = port
+        self.url = f"http://127.0.0.1:{port}"
+        self.log_path = workdir / f"{name}.log"
+        self.name = name
         self.proc: subprocess.Popen[bytes] | None = None
 
-    def __enter__(self) -> Prometheus:
+    def __enter__(self) -> Server:
+        self.workdir.mkdir(parents=True, exist_ok=True)
         with self.log_path.open("wb") as log:
-            self.proc = subprocess.Popen(
-                [
-                    self.binary,
-                    f"--config.file={self.config_path}",
-                    f"--storage.tsdb.path={self.workdir / 'data'}",
-                    f"--web.listen-address=127.0.0.1:{self.port}",
-                    "--log.level=warn",
-                ],
-                stdout=log,
-                stderr=subprocess.STDOUT,
-            )
-        deadline = time.monotonic() + 20
+            self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + self.ready_timeout_s
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
-                raise RuntimeError(f"prometheus exited: {self.log_path.read_text()}")
+                raise RuntimeError(f"{self.name} exited: {self.log_path.read_text()}")
             with (
                 contextlib.suppress(OSError),
-                urllib.request.urlopen(f"{self.url}/-/ready", timeout=1) as r,
+                urllib.request.urlopen(f"{self.url}{self.ready_path}", timeout=1) as r,
             ):
                 if r.status == 200:
                     return self
             time.sleep(0.1)
-        raise RuntimeError(f"prometheus not ready: {self.log_path.read_text()}")
+        raise RuntimeError(f"{self.name} not ready: {self.log_path.read_text()}")
 
     def __exit__(self, *exc: object) -> None:
-        if self.proc is not None:
+        self.stop()
+
+    def stop(self, timeout: float = 10) -> None:
+        if self.proc is not None and self.proc.poll() is None:
             self.proc.terminate()
             try:
-                self.proc.wait(timeout=10)
+                self.proc.wait(timeout=timeout)
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
+
+    def get(self, path: str) -> str:
+        return http_get(f"{self.url}{path}", timeout=10)
 
     def api(self, path: str, **params: str) -> dict[str, Any]:
         """GET /api/v1/<path>; returns the JSON answer, also for 4xx (a parse error)."""
@@ -210,10 +212,11 @@ class Prometheus:
             "query_range", query=expr, start=f"{end - seconds:.3f}", end=f"{end:.3f}", step=step
         )
 
-    def run_query(self, q: Query, *, loop: str, rate: str = "1m", seconds: float = 60) -> Any:
+    def run_query(self, q: Query, *, loop: str, rate: str = "1m", seconds: float = 60,
+                  site: str = ".*") -> Any:
         """Run a dashboard/rule query as Grafana or the rule engine would; returns the
         answer's ``data`` (a parse error or other failure raises AssertionError)."""
-        expr = substitute(q.expr, loop=loop, rate=rate)
+        expr = substitute(q.expr, loop=loop, rate=rate, site=site)
         if q.kind == "variable":
             match, label = parse_label_values(expr)
             params = {"match[]": match} if match else {}
@@ -224,6 +227,40 @@ class Prometheus:
             ans = self.query(expr)
         assert ans.get("status") == "success", f"{q.where}: {expr}\n -> {ans}"
         return ans["data"]
+
+    def values(self, expr: str) -> dict[tuple[tuple[str, str], ...], float]:
+        """An instant query's result: {sorted label pairs: value}."""
+        ans = self.query(expr)
+        assert ans.get("status") == "success", f"{expr} -> {ans}"
+        return {tuple(sorted(r["metric"].items())): float(r["value"][1])
+                for r in ans["data"]["result"]}
+
+
+class Prometheus(Server):
+    """A real Prometheus on 127.0.0.1 with a temporary config and TSDB; with ``agent`` in
+    agent mode (scrape and remote-write only: no query API, no rules), started with
+    ``args`` (e.g. the shipped /etc/default/prometheus ARGS) besides its paths."""
+
+    def __init__(self, workdir: Path, config: dict[str, Any], rule_files: list[Path], *,
+                 agent: bool = False, args: Sequence[str] = ()) -> None:
+        binary = require_tool("prometheus", "prometheus")
+        port = free_port()
+        workdir.mkdir(parents=True, exist_ok=True)
+        config = dict(config)
+        if rule_files:
+            config["rule_files"] = [str(p) for p in rule_files]
+        self.config_path = workdir / "prometheus.yml"
+        self.config_path.write_text(yaml.safe_dump(config, sort_keys=False))
+        storage = ("--storage.agent.path" if agent else "--storage.tsdb.path") + \
+            f"={workdir / 'data'}"
+        argv = [binary, *(["--enable-feature=agent"] if agent else []), *args,
+                f"--config.file={self.config_path}", storage,
+                f"--web.listen-address=127.0.0.1:{port}", "--log.level=warn"]
+        super().__init__(workdir, argv, port, "prometheus")
+
+    def __enter__(self) -> Prometheus:
+        super().__enter__()
+        return self
 
     def targets_up(self) -> list[dict[str, Any]]:
         return list(self.api("targets")["data"]["activeTargets"])
