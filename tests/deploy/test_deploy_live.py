@@ -31,7 +31,6 @@ from typing import Any
 import pytest
 import yaml
 from deploy_support import (
-    RULE_FILES,
     Prometheus,
     Query,
     dashboard_queries,
@@ -41,6 +40,7 @@ from deploy_support import (
     require_tool,
     rule_queries,
     run,
+    shortened_rules,
 )
 
 from bench._net import free_port
@@ -115,21 +115,6 @@ def wait_for(
     pytest.fail(f"timed out after {timeout:.0f} s waiting for {what}\n{tails}")
 
 
-def _shortened_rules(dest: Path) -> list[Path]:
-    """The shipped rule files with every `for:` set to 0s (the expressions untouched)."""
-    dest.mkdir()
-    out = []
-    for path in RULE_FILES:
-        doc = yaml.safe_load(path.read_text())
-        for group in doc["groups"]:
-            for rule in group["rules"]:
-                if "for" in rule:
-                    rule["for"] = "0s"
-        (dest / path.name).write_text(yaml.safe_dump(doc, sort_keys=False))
-        out.append(dest / path.name)
-    return out
-
-
 @pytest.fixture(scope="module")
 def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
     require_tool("prometheus", "prometheus")
@@ -191,7 +176,7 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
         ],
     }
     try:
-        with Prometheus(work / "prometheus", prom_cfg, _shortened_rules(work / "rules")) as prom:
+        with Prometheus(work / "prometheus", prom_cfg, shortened_rules(work / "rules")) as prom:
             s = Stack(work, gw_cfg, f"http://127.0.0.1:{metrics_port}/metrics", result_port,
                       prom, sim, gateway)  # fmt: skip
             logs.append(prom.log_path)

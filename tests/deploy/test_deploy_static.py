@@ -5,7 +5,6 @@ query in them parsed by a real Prometheus. No gateway needed."""
 from __future__ import annotations
 
 import re
-import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from deploy_support import (
     Prometheus,
     Query,
     dashboard_queries,
+    fake_root,
     iter_panels,
     load_dashboards,
     parse_label_values,
@@ -93,20 +93,7 @@ def test_rules_cover_what_plant_engineers_asked_for() -> None:
 
 
 def _fake_root(tmp_path: Path) -> Path:
-    """A root with systemd's own units, the unit under test and stub executables at the
-    paths the unit names, so `systemd-analyze verify` checks the real file in a container
-    where /opt/stiction-gateway does not exist."""
-    root = tmp_path / "root"
-    shutil.copytree("/usr/lib/systemd/system", root / "usr/lib/systemd/system", symlinks=True)
-    (root / "etc/systemd/system").mkdir(parents=True)
-    shutil.copy(UNIT, root / "etc/systemd/system" / UNIT.name)
-    text = UNIT.read_text()
-    for exe in sorted(set(re.findall(r"^Exec\w+=[-@:+!]*(\S+)", text, re.M))):
-        stub = root / exe.lstrip("/")
-        stub.parent.mkdir(parents=True, exist_ok=True)
-        stub.write_text("#!/bin/sh\n")
-        stub.chmod(0o755)
-    return root
+    return fake_root(tmp_path, UNIT)
 
 
 def test_systemd_analyze_verify(tmp_path: Path) -> None:

@@ -65,6 +65,23 @@ def run(cmd: list[str], timeout: float = 60, **kw: Any) -> subprocess.CompletedP
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=False, **kw)
 
 
+def fake_root(tmp_path: Path, unit: Path) -> Path:
+    """A root with systemd's own units, ``unit`` and stub executables at the paths it
+    names, so `systemd-analyze verify` checks the real file in a container where
+    /opt/stiction-gateway (or /usr/bin/vmalert) does not exist."""
+    root = tmp_path / "root"
+    shutil.copytree("/usr/lib/systemd/system", root / "usr/lib/systemd/system", symlinks=True)
+    (root / "etc/systemd/system").mkdir(parents=True)
+    shutil.copy(unit, root / "etc/systemd/system" / unit.name)
+    text = unit.read_text()
+    for exe in sorted(set(re.findall(r"^Exec\w+=[-@:+!]*(\S+)", text, re.M))):
+        stub = root / exe.lstrip("/")
+        stub.parent.mkdir(parents=True, exist_ok=True)
+        stub.write_text("#!/bin/sh\n")
+        stub.chmod(0o755)
+    return root
+
+
 # ------------------------------------------------------------------ dashboards and rules
 
 
@@ -115,6 +132,22 @@ def rule_queries() -> list[Query]:
             for rule in group["rules"]:
                 kind = "alert" if "alert" in rule else "record"
                 out.append(Query(f"{path.name}: {kind} {rule[kind]}", rule["expr"], kind))
+    return out
+
+
+def shortened_rules(dest: Path, files: Sequence[Path] = tuple(RULE_FILES)) -> list[Path]:
+    """The rule ``files`` (default: the shipped ones) copied into ``dest`` with every
+    ``for:`` set to 0s, the expressions untouched; returns the copies."""
+    dest.mkdir(parents=True, exist_ok=True)
+    out = []
+    for path in files:
+        doc = yaml.safe_load(path.read_text())
+        for group in doc["groups"]:
+            for rule in group["rules"]:
+                if "for" in rule:
+                    rule["for"] = "0s"
+        (dest / path.name).write_text(yaml.safe_dump(doc, sort_keys=False))
+        out.append(dest / path.name)
     return out
 
 
@@ -253,7 +286,9 @@ class Prometheus(Server):
         self.config_path.write_text(yaml.safe_dump(config, sort_keys=False))
         storage = ("--storage.agent.path" if agent else "--storage.tsdb.path") + \
             f"={workdir / 'data'}"
-        argv = [binary, *(["--enable-feature=agent"] if agent else []), *args,
+        feature = [] if not agent or "--enable-feature=agent" in args else [
+            "--enable-feature=agent"]
+        argv = [binary, *feature, *args,
                 f"--config.file={self.config_path}", storage,
                 f"--web.listen-address=127.0.0.1:{port}", "--log.level=warn"]
         super().__init__(workdir, argv, port, "prometheus")
