@@ -35,7 +35,6 @@ from deploy_support import (
     Query,
     dashboard_queries,
     has_data,
-    http_get,
     require,
     require_tool,
     rule_queries,
@@ -44,6 +43,7 @@ from deploy_support import (
 )
 
 from bench._net import free_port
+from bench._servers import http_get
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 

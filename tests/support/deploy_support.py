@@ -9,16 +9,11 @@ the tools from Debian packages, so in CI a missing one is a broken setup, not a 
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import re
 import shutil
 import subprocess
-import time
-import urllib.error
-import urllib.parse
-import urllib.request
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +22,7 @@ from typing import Any
 import pytest
 import yaml
 
-from bench._net import free_port
+from bench import _servers as servers
 
 REPO = Path(__file__).resolve().parents[2]
 DEPLOY = REPO / "deploy"
@@ -177,75 +172,11 @@ def parse_label_values(expr: str) -> tuple[str | None, str]:
 # ------------------------------------------------------------------ servers
 
 
-class Server:
-    """A real server binary on 127.0.0.1 (``argv``), ready once ``ready_path`` answers 200,
-    stopped (then killed) on exit, its output in ``log_path``. Subclasses that answer the
-    Prometheus query API (Prometheus, VictoriaMetrics, vmalert's /api/v1/alerts) share
-    :meth:`api` and the query helpers."""
+class QueryRunner:
+    """Runs the dashboards' and rules' queries on a server with the Prometheus query API
+    (:class:`bench._servers.Server`)."""
 
-    ready_path = "/-/ready"
-    ready_timeout_s = 20.0
-
-    def __init__(self, workdir: Path, argv: list[str], port: int, name: str) -> None:
-        self.workdir = workdir
-        self.argv = argv
-        self.port = port
-        self.url = f"http://127.0.0.1:{port}"
-        self.log_path = workdir / f"{name}.log"
-        self.name = name
-        self.proc: subprocess.Popen[bytes] | None = None
-
-    def __enter__(self) -> Server:
-        self.workdir.mkdir(parents=True, exist_ok=True)
-        with self.log_path.open("wb") as log:
-            self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + self.ready_timeout_s
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"{self.name} exited: {self.log_path.read_text()}")
-            with (
-                contextlib.suppress(OSError),
-                urllib.request.urlopen(f"{self.url}{self.ready_path}", timeout=1) as r,
-            ):
-                if r.status == 200:
-                    return self
-            time.sleep(0.1)
-        raise RuntimeError(f"{self.name} not ready: {self.log_path.read_text()}")
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    def stop(self, timeout: float = 10) -> None:
-        if self.proc is not None and self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-
-    def get(self, path: str) -> str:
-        return http_get(f"{self.url}{path}", timeout=10)
-
-    def api(self, path: str, **params: str) -> dict[str, Any]:
-        """GET /api/v1/<path>; returns the JSON answer, also for 4xx (a parse error)."""
-        url = f"{self.url}/api/v1/{path}?{urllib.parse.urlencode(params)}"
-        try:
-            with urllib.request.urlopen(url, timeout=10) as r:
-                return dict(json.load(r))
-        except urllib.error.HTTPError as e:
-            return dict(json.load(e))
-
-    def query(self, expr: str) -> dict[str, Any]:
-        return self.api("query", query=expr)
-
-    def query_range(self, expr: str, seconds: float, step: str = "1s") -> dict[str, Any]:
-        end = time.time()
-        return self.api(
-            "query_range", query=expr, start=f"{end - seconds:.3f}", end=f"{end:.3f}", step=step
-        )
-
-    def run_query(self, q: Query, *, loop: str, rate: str = "1m", seconds: float = 60,
+    def run_query(self: Any, q: Query, *, loop: str, rate: str = "1m", seconds: float = 60,
                   site: str = ".*") -> Any:
         """Run a dashboard/rule query as Grafana or the rule engine would; returns the
         answer's ``data`` (a parse error or other failure raises AssertionError)."""
@@ -261,47 +192,19 @@ class Server:
         assert ans.get("status") == "success", f"{q.where}: {expr}\n -> {ans}"
         return ans["data"]
 
-    def values(self, expr: str) -> dict[tuple[tuple[str, str], ...], float]:
-        """An instant query's result: {sorted label pairs: value}."""
-        ans = self.query(expr)
-        assert ans.get("status") == "success", f"{expr} -> {ans}"
-        return {tuple(sorted(r["metric"].items())): float(r["value"][1])
-                for r in ans["data"]["result"]}
 
+class Prometheus(QueryRunner, servers.Prometheus):
+    """A real Prometheus on 127.0.0.1 with a temporary config and TSDB (or, with
+    ``agent``, in agent mode); see :class:`bench._servers.Prometheus`."""
 
-class Prometheus(Server):
-    """A real Prometheus on 127.0.0.1 with a temporary config and TSDB; with ``agent`` in
-    agent mode (scrape and remote-write only: no query API, no rules), started with
-    ``args`` (e.g. the shipped /etc/default/prometheus ARGS) besides its paths."""
-
-    def __init__(self, workdir: Path, config: dict[str, Any], rule_files: list[Path], *,
-                 agent: bool = False, args: Sequence[str] = ()) -> None:
-        binary = require_tool("prometheus", "prometheus")
-        port = free_port()
-        workdir.mkdir(parents=True, exist_ok=True)
-        config = dict(config)
-        if rule_files:
-            config["rule_files"] = [str(p) for p in rule_files]
-        self.config_path = workdir / "prometheus.yml"
-        self.config_path.write_text(yaml.safe_dump(config, sort_keys=False))
-        storage = ("--storage.agent.path" if agent else "--storage.tsdb.path") + \
-            f"={workdir / 'data'}"
-        feature = [] if not agent or "--enable-feature=agent" in args else [
-            "--enable-feature=agent"]
-        argv = [binary, *feature, *args,
-                f"--config.file={self.config_path}", storage,
-                f"--web.listen-address=127.0.0.1:{port}", "--log.level=warn"]
-        super().__init__(workdir, argv, port, "prometheus")
+    def __init__(self, workdir: Path, config: dict[str, Any], rule_files: Sequence[Path] = (),
+                 *, agent: bool = False, args: Sequence[str] = ()) -> None:
+        super().__init__(workdir, config, rule_files, agent=agent, args=args,
+                         binary=require_tool("prometheus", "prometheus"))
 
     def __enter__(self) -> Prometheus:
         super().__enter__()
         return self
-
-    def targets_up(self) -> list[dict[str, Any]]:
-        return list(self.api("targets")["data"]["activeTargets"])
-
-    def alerts(self) -> list[dict[str, Any]]:
-        return list(self.api("alerts")["data"]["alerts"])
 
 
 def has_data(data: Any) -> bool:
@@ -312,8 +215,3 @@ def has_data(data: Any) -> bool:
     if data["resultType"] in ("scalar", "string"):
         return True
     return len(result) > 0
-
-
-def http_get(url: str, timeout: float = 5) -> str:
-    with urllib.request.urlopen(url, timeout=timeout) as r:
-        return str(r.read().decode())
