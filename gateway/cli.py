@@ -14,6 +14,7 @@ from pathlib import Path
 
 from .config import load_config
 from .errors import ConfigError, GatewayError
+from .runtime.logs import install_rate_limit
 from .runtime.service import install_stop_signals, run
 
 __all__ = ["build_parser", "main"]
@@ -31,6 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--config", required=True, metavar="FILE", help="gateway YAML config")
     check = sub.add_parser("check-config", help="validate a config file without connecting")
     check.add_argument("file", metavar="FILE")
+    check.add_argument("--bind-check", action="store_true",
+                       help="also try to bind metrics.listen and modbus_server.listen")
     sim = sub.add_parser("plc-sim", help="simulated PLC serving OP/PV over Modbus TCP")
     sim.add_argument("--config", required=True, metavar="FILE", help="plc-sim YAML config")
     sim.add_argument("--write-gateway-config", metavar="FILE",
@@ -67,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     # the sources report every pymodbus failure as a DeviceError, logged once per outage by
     # the poller; pymodbus' own per-attempt lines would repeat it every retry
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    install_rate_limit()  # no flood of events floods the journal (runtime/logs.py)
     # likewise asyncua: the OPC UA source maps its failures to DeviceError; its own loggers
     # would add hostname warnings and a traceback for every refused certificate
     for name in ("asyncua", "asyncuagds"):
@@ -85,6 +89,12 @@ def main(argv: list[str] | None = None) -> int:
 def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "check-config":
         cfg = load_config(args.file)
+        if args.bind_check:
+            from .config.checks import bind_check
+
+            problems = bind_check(cfg)
+            if problems:
+                raise ConfigError(problems)
         print(f"{args.file}: ok ({len(cfg.devices)} device(s), {len(cfg.loops)} loop(s))")
         return 0
     if args.command == "run":

@@ -112,9 +112,11 @@ def _num(x: float | None, factor: float = 1.0) -> float:
 
 
 def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
-    """The field values of one loop's block (fields left out are 0)."""
+    """The field values of one loop's block (fields left out are 0). Without an assessment
+    (none yet, or stale since start) every float is NaN, never 0: a SCADA screen must not
+    show "fd 0.0 %" for a loop never assessed; the sequence number and time are 0."""
     if result is None:
-        return {"code": code}
+        return {"code": code, **{f.name: math.nan for f in LAYOUT if f.type == "float32"}}
     a = result.assessment
     return {"code": code, "seq": result.seq % 65536,
             "stiction_index": _num(a.stiction_index), "fd_percent": _num(a.fd, 100.0),
