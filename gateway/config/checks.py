@@ -97,7 +97,8 @@ def _check_memory(problems: Problems, config: Config) -> None:
     dev = config.device(big.device)
     what = (f"window_s {big.window_s:g} / poll_interval_s {dev.poll_interval_s:g} of device "
             f"{dev.name}")
-    budget_text = f"the memory budget of {limit_mb:,.0f} MiB ({origin})"
+    shown = f"{limit_mb:,.0f}" if limit_mb >= 10 else f"{limit_mb:g}"
+    budget_text = f"the memory budget of {shown} MiB ({origin})"
     if 2 * 9 * n > budget:
         problems.add(f"loop {big.name}", "window_s",
                      f"its window of {n:,} samples ({what}) needs {_gib(2 * 9 * n)} with the "

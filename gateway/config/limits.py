@@ -64,7 +64,7 @@ def read_document(path: str | os.PathLike[str]) -> Any:
         detail = " ".join(str(exc).split()).replace(' in "<unicode string>",', " at")
         raise ConfigError([f"{source}: invalid YAML: {detail}"]) from None
     if loader.duplicates:
-        raise ConfigError([f"{source}: {line}" for line in loader.duplicates])
+        raise ConfigError([f"{source}: {line}" for _at, line in sorted(loader.duplicates)])
     return document
 
 
@@ -126,7 +126,7 @@ class _Loader(_BaseLoader):  # type: ignore[misc]
 
     def __init__(self, stream: str) -> None:
         super().__init__(stream)
-        self.duplicates: list[str] = []
+        self.duplicates: list[tuple[tuple[int, int], str]] = []  # ((line, column), text)
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> Any:
         first: dict[tuple[str, str], str] = {}
@@ -137,9 +137,9 @@ class _Loader(_BaseLoader):  # type: ignore[misc]
             mark = key_node.start_mark
             at = f"line {mark.line + 1}, column {mark.column + 1}"
             if key in first:
-                self.duplicates.append(
+                self.duplicates.append(((mark.line, mark.column), (
                     f"{at}: key {_short(key_node.value)!r} repeats the key at {first[key]} "
-                    "in the same mapping (YAML would silently keep only the last one)")
+                    "in the same mapping (YAML would silently keep only the last one)")))
             else:
                 first[key] = at
         return super().construct_mapping(node, deep=deep)

@@ -23,14 +23,19 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import socket
 import time
 from collections.abc import Callable
+from typing import Any
 
 __all__ = ["CLOSE_REASONS", "Conn", "Listener", "ListenerStats"]
 
 CLOSE_REASONS = ("limit", "idle", "protocol")
 """Why the server closed a connection: over the connection limit, idle too long, garbage."""
 WRITE_HIGH_WATER = 64 * 1024  # bytes of answers queued for a client before it is not read
+BACKLOG = 1024  # connections the kernel may queue for accepting: a burst is accepted (and
+# the least useful closed) rather than left to retry its SYN seconds later
+ACCEPT_BATCH = 16  # connections accepted per wake-up of the event loop
 
 
 @dataclasses.dataclass
@@ -44,12 +49,14 @@ class ListenerStats:
 
 
 class Conn(asyncio.Protocol):
-    """A connection served by a :class:`Listener`. Subclasses implement ``data_received``:
-    call :meth:`received` first, :meth:`begin`/:meth:`served` around a request, and
-    :meth:`drop` on garbage."""
+    """A connection served by a :class:`Listener`. Received bytes go to ``buffer``, then
+    :meth:`handle` (a subclass's) is called: it takes what it can from the buffer, calls
+    :meth:`begin`/:meth:`served` around a request and :meth:`drop` on garbage. The server
+    it belongs to is ``listener.owner``."""
 
     def __init__(self, listener: Listener) -> None:
         self.listener = listener
+        self.buffer = bytearray()
         self.transport: asyncio.Transport | None = None
         self.last = listener.clock()
         self.useful = False  # a complete request was answered on it
@@ -74,8 +81,14 @@ class Conn(asyncio.Protocol):
         if self.transport is not None and not self.closed:
             self.transport.resume_reading()
 
-    def received(self) -> None:
+    def data_received(self, data: bytes) -> None:
         self.last = self.listener.clock()
+        self.buffer += data
+        self.handle()
+
+    def handle(self) -> None:
+        """Take requests from ``buffer`` (subclasses)."""
+        raise NotImplementedError
 
     def begin(self) -> None:
         self.busy = True
@@ -108,7 +121,7 @@ class Listener:
     may be shared with the listener this one replaces, so that the counts go on."""
 
     def __init__(self, name: str, factory: Callable[[Listener], Conn], *, host: str,
-                 port: int, max_connections: int, idle_timeout_s: float,
+                 port: int, max_connections: int, idle_timeout_s: float, owner: Any = None,
                  clock: Callable[[], float] = time.monotonic,
                  stats: ListenerStats | None = None) -> None:
         if max_connections < 1:
@@ -117,6 +130,7 @@ class Listener:
             raise ValueError(f"`idle_timeout_s` must be > 0, was {idle_timeout_s}")
         self.name = name
         self.factory = factory
+        self.owner = owner  # the server the connections answer for
         self.host, self.port = host, port
         self.max_connections = max_connections
         self.idle_timeout_s = idle_timeout_s
@@ -124,6 +138,7 @@ class Listener:
         self.conns: set[Conn] = set()
         self.stats = stats if stats is not None else ListenerStats()
         self._server: asyncio.Server | None = None
+        self._sock: socket.socket | None = None
         self._sweeper: asyncio.Task[None] | None = None
 
     @property
@@ -135,10 +150,23 @@ class Listener:
         if self._server is not None:
             return
         loop = asyncio.get_running_loop()
-        self._server = await loop.create_server(
-            lambda: self.factory(self), self.host, self.port, reuse_address=True,
-            backlog=max(128, 2 * self.max_connections), start_serving=False)
-        self.port = int(self._server.sockets[0].getsockname()[1])
+        infos = await loop.getaddrinfo(self.host or None, self.port, type=socket.SOCK_STREAM,
+                                       flags=socket.AI_PASSIVE)
+        family = infos[0][0] if infos else socket.AF_INET
+        sock = socket.create_server(infos[0][4][:2] if infos else (self.host, self.port),
+                                    family=family, backlog=BACKLOG)
+        try:
+            # asyncio accepts up to `backlog` connections per wake-up before any of them is
+            # admitted (each an open file): a small batch keeps the descriptors in flight
+            # few, while the kernel's queue (re-set in serve) stays long
+            self._server = await loop.create_server(
+                lambda: self.factory(self), sock=sock, backlog=ACCEPT_BATCH,
+                start_serving=False)
+        except BaseException:
+            sock.close()
+            raise
+        self._sock = sock
+        self.port = int(sock.getsockname()[1])
 
     async def serve(self) -> None:
         """Start accepting connections (after :meth:`open`)."""
@@ -146,6 +174,8 @@ class Listener:
             await self.open()
         assert self._server is not None
         await self._server.start_serving()
+        if self._sock is not None:
+            self._sock.listen(BACKLOG)  # start_serving listened with the batch size
         if self._sweeper is None:
             self._sweeper = asyncio.create_task(self._sweep(), name=f"{self.name} idle")
 
@@ -155,6 +185,7 @@ class Listener:
 
     async def stop(self) -> None:
         server, self._server = self._server, None
+        self._sock = None  # closed with the server
         sweeper, self._sweeper = self._sweeper, None
         if sweeper is not None:
             sweeper.cancel()

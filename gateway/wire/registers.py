@@ -75,15 +75,9 @@ def answer_identification(pdu: bytes, objects: Mapping[int, bytes]) -> bytes:
 class _ModbusConn(Conn):
     """One client connection: MBAP frames in, answers out, in order."""
 
-    def __init__(self, listener: Listener, server: RegisterServer) -> None:
-        super().__init__(listener)
-        self.server = server
-        self.buffer = bytearray()
-
-    def data_received(self, data: bytes) -> None:
-        self.received()
+    def handle(self) -> None:
+        server: RegisterServer = self.listener.owner
         buf = self.buffer
-        buf += data
         while len(buf) >= 7 and not self.closed:
             tid, protocol, length, unit = _MBAP.unpack_from(buf)
             if protocol != 0 or not 2 <= length <= 254:
@@ -95,7 +89,7 @@ class _ModbusConn(Conn):
             self.begin()
             pdu = bytes(buf[7:end])
             del buf[:end]
-            reply = self.server.answer(unit, pdu)
+            reply = server.answer(unit, pdu)
             self.write(_MBAP.pack(tid, 0, len(reply) + 1, unit) + reply)
             self.served()
 
@@ -131,18 +125,14 @@ class RegisterServer:
         self.refused_writes = 0
         self.identification: dict[int, bytes] = {}
         self.set_identification(identification or {})
-        self.listener = Listener("modbus", lambda lst: _ModbusConn(lst, self), host=host,
-                                 port=port, max_connections=max_connections,
+        self.listener = Listener("modbus", _ModbusConn, host=host, port=port, owner=self,
+                                 max_connections=max_connections,
                                  idle_timeout_s=idle_timeout_s, stats=stats)
 
     @property
     def images(self) -> dict[str, NDArray[np.uint16]]:
         """The images of the unit id given at construction (the one-unit form)."""
         return self.units[self.unit_id]
-
-    @property
-    def host(self) -> str:
-        return self.listener.host
 
     @property
     def port(self) -> int:

@@ -32,14 +32,9 @@ Page = tuple[int, str, bytes, bool]  # status, content type, body, gzipped
 
 
 class _HttpConn(Conn):
-    def __init__(self, listener: Listener, server: MetricsServer) -> None:
-        super().__init__(listener)
-        self.server = server
-        self.buffer = bytearray()
+    """One client connection: requests in, one at a time, answers out."""
 
-    def data_received(self, data: bytes) -> None:
-        self.received()
-        self.buffer += data
+    def handle(self) -> None:
         if not self.busy:
             self._next()
         elif len(self.buffer) > 2 * MAX_HEAD_BYTES:  # pipelining far ahead of the answers
@@ -81,7 +76,8 @@ class _HttpConn(Conn):
         self.begin()
         names = tuple(sorted(parse_qs(query).get("name[]", [])))
         gz = "gzip" in headers.get("accept-encoding", "").lower()
-        task = asyncio.ensure_future(self.server.page(headers.get("accept", ""), gz, names))
+        server: MetricsServer = self.listener.owner
+        task = asyncio.ensure_future(server.page(headers.get("accept", ""), gz, names))
         task.add_done_callback(lambda t: self._rendered(t, keep, method == "HEAD"))
 
     def _rendered(self, task: asyncio.Future[Page], keep: bool, head: bool) -> None:
@@ -118,8 +114,8 @@ class MetricsServer:
                  max_connections: int, idle_timeout_s: float,
                  stats: ListenerStats | None = None) -> None:
         self.registry = registry
-        self.listener = Listener("metrics", lambda lst: _HttpConn(lst, self), host=host,
-                                 port=port, max_connections=max_connections,
+        self.listener = Listener("metrics", _HttpConn, host=host, port=port, owner=self,
+                                 max_connections=max_connections,
                                  idle_timeout_s=idle_timeout_s, stats=stats)
         self._executor: ThreadPoolExecutor | None = None
         self._inflight: dict[tuple[str, bool, tuple[str, ...]], asyncio.Future[Page]] = {}
