@@ -119,7 +119,7 @@ async def _attacker(host: str, ports: tuple[int, int], stop: asyncio.Event,
                 writer.close()
 
     tasks = [asyncio.create_task(hold(p)) for p in ports for _ in range(HALF_OPEN)]
-    senders = 20  # per server, each sending its share of the frames
+    senders = 50  # per server, each sending its share of the frames
     tasks += [asyncio.create_task(garbage(port, make, range(w, GARBAGE, senders)))
               for port, make in ((ports[0], _garbage_modbus), (ports[1], _garbage_http))
               for w in range(senders)]

@@ -195,6 +195,10 @@ class Gateway:
                 self.metrics.reload_failures.labels(stage=refused.stage).inc()
                 log.error("reload refused, keeping the running config: %s", refused.line)
                 return False
+            except Exception:  # a bug: still never the end of the daemon
+                self.metrics.reload_failures.labels(stage="build").inc()
+                log.exception("reload of %s failed unexpectedly", source)
+                return False
             self.reloads += 1
             return True
 
@@ -216,16 +220,14 @@ class Gateway:
             text = " ".join(str(exc).split())[:200]
             raise ReloadRefused("build", f"{config.source}: its runtime cannot be built: "
                                 f"{type(exc).__name__}: {text}") from exc
-        for swap in swaps:  # the new listeners take over
+        for swap in swaps:  # the new listeners take over (the old ones serve until then)
             try:
                 await swap.commit()
-            except Exception:  # bound already: should not happen; the sink reports it
+            except Exception:  # bound already: should not happen
                 log.exception("reload: a new listener could not take over")
         await _close_unused(old.sources.values(), new.sources.values())
         self.runtime = new
-        binding = new.binding()
-        for sink in self.sinks.values():
-            await sink.bind(binding)
+        await _bind_all(self.sinks, new.binding())
         g = config.gateway
         self.scheduler.groups, self.scheduler.store = list(new.groups), new.store
         self.scheduler.interval_wall_s = g.analysis_interval_s / g.time_scale
@@ -256,6 +258,15 @@ def create_sinks(names: Sequence[str], binding: Binding, **options: Any) -> dict
             raise ValueError(f"unknown output {name!r}")
         sinks[name] = plugin.create_sink(binding, **options)
     return sinks
+
+
+async def _bind_all(sinks: dict[str, Sink], binding: Binding) -> None:
+    """Bind every sink to a reloaded runtime; one that fails is logged, the others bound."""
+    for name, sink in sinks.items():
+        try:
+            await sink.bind(binding)
+        except Exception:  # an output that fails must not end the daemon
+            log.exception("reload: output %s could not take the new config", name)
 
 
 async def _close_unused(old: Iterable[Source], new: Iterable[Source]) -> None:

@@ -94,7 +94,8 @@ async def serve(config: Config, stop: asyncio.Event, *, reload: asyncio.Event | 
                     reload.clear()
                     notifier.reloading()
                     path = config_path if config_path is not None else config.source
-                    await gw.reload(path)
+                    if await gw.reload(path):
+                        raise_fd_limit(gw.config)  # e.g. more devices
                     notifier.ready(gw.status_text())
                 elif not stop.is_set():
                     notifier.status(gw.status_text())

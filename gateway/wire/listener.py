@@ -23,12 +23,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import os
 import socket
 import time
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["CLOSE_REASONS", "Conn", "Listener", "ListenerStats"]
+__all__ = ["CLOSE_REASONS", "REQUESTS_PER_TURN", "Conn", "Listener", "ListenerStats"]
 
 CLOSE_REASONS = ("limit", "idle", "protocol")
 """Why the server closed a connection: over the connection limit, idle too long, garbage."""
@@ -36,6 +37,7 @@ WRITE_HIGH_WATER = 64 * 1024  # bytes of answers queued for a client before it i
 BACKLOG = 1024  # connections the kernel may queue for accepting: a burst is accepted (and
 # the least useful closed) rather than left to retry its SYN seconds later
 ACCEPT_BATCH = 16  # connections accepted per wake-up of the event loop
+REQUESTS_PER_TURN = 64  # requests one connection has answered before others get a turn
 
 
 @dataclasses.dataclass
@@ -51,8 +53,10 @@ class ListenerStats:
 class Conn(asyncio.Protocol):
     """A connection served by a :class:`Listener`. Received bytes go to ``buffer``, then
     :meth:`handle` (a subclass's) is called: it takes what it can from the buffer, calls
-    :meth:`begin`/:meth:`served` around a request and :meth:`drop` on garbage. The server
-    it belongs to is ``listener.owner``."""
+    :meth:`begin`/:meth:`served` around a request and :meth:`drop` on garbage; after
+    :data:`REQUESTS_PER_TURN` requests it returns :meth:`later` (a client that pipelines
+    thousands of requests does not hold the event loop). The server it belongs to is
+    ``listener.owner``."""
 
     def __init__(self, listener: Listener) -> None:
         self.listener = listener
@@ -62,6 +66,7 @@ class Conn(asyncio.Protocol):
         self.useful = False  # a complete request was answered on it
         self.busy = False  # a request is being answered: never evicted
         self.closed = False
+        self._held: set[str] = set()  # why reading is paused: "write", "turn"
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -73,13 +78,36 @@ class Conn(asyncio.Protocol):
         self.closed = True
         self.listener.forget(self)
 
-    def pause_writing(self) -> None:  # the client does not read: stop reading it
-        if self.transport is not None:
+    def _hold(self, why: str) -> None:
+        self._held.add(why)
+        if self.transport is not None and not self.closed:
             self.transport.pause_reading()
 
-    def resume_writing(self) -> None:
-        if self.transport is not None and not self.closed:
+    def _release(self, why: str) -> None:
+        self._held.discard(why)
+        if not self._held and self.transport is not None and not self.closed:
             self.transport.resume_reading()
+
+    def pause_writing(self) -> None:  # the client does not read: stop reading it
+        self._hold("write")
+
+    def resume_writing(self) -> None:
+        self._release("write")
+
+    def later(self) -> None:
+        """Go on with the buffer on the event loop's next turn (reading paused until)."""
+        if "turn" in self._held:
+            return
+        self._hold("turn")
+
+        def go_on() -> None:
+            self._held.discard("turn")
+            if not self.closed:
+                self.handle()
+            if "turn" not in self._held:
+                self._release("turn")
+
+        asyncio.get_running_loop().call_soon(go_on)
 
     def data_received(self, data: bytes) -> None:
         self.last = self.listener.clock()
@@ -138,7 +166,6 @@ class Listener:
         self.conns: set[Conn] = set()
         self.stats = stats if stats is not None else ListenerStats()
         self._server: asyncio.Server | None = None
-        self._sock: socket.socket | None = None
         self._sweeper: asyncio.Task[None] | None = None
 
     @property
@@ -150,32 +177,23 @@ class Listener:
         if self._server is not None:
             return
         loop = asyncio.get_running_loop()
-        infos = await loop.getaddrinfo(self.host or None, self.port, type=socket.SOCK_STREAM,
-                                       flags=socket.AI_PASSIVE)
-        family = infos[0][0] if infos else socket.AF_INET
-        sock = socket.create_server(infos[0][4][:2] if infos else (self.host, self.port),
-                                    family=family, backlog=BACKLOG)
-        try:
-            # asyncio accepts up to `backlog` connections per wake-up before any of them is
-            # admitted (each an open file): a small batch keeps the descriptors in flight
-            # few, while the kernel's queue (re-set in serve) stays long
-            self._server = await loop.create_server(
-                lambda: self.factory(self), sock=sock, backlog=ACCEPT_BATCH,
-                start_serving=False)
-        except BaseException:
-            sock.close()
-            raise
-        self._sock = sock
-        self.port = int(sock.getsockname()[1])
+        # asyncio accepts up to `backlog` connections per wake-up before any of them is
+        # admitted (each an open file): a small batch keeps the descriptors in flight few,
+        # while the kernel's queue (set in serve) stays long
+        self._server = await loop.create_server(
+            lambda: self.factory(self), self.host or None, self.port, reuse_address=True,
+            backlog=ACCEPT_BATCH, start_serving=False)
+        self.port = int(self._server.sockets[0].getsockname()[1])
 
     async def serve(self) -> None:
         """Start accepting connections (after :meth:`open`)."""
         if self._server is None:
             await self.open()
         assert self._server is not None
-        await self._server.start_serving()
-        if self._sock is not None:
-            self._sock.listen(BACKLOG)  # start_serving listened with the batch size
+        await self._server.start_serving()  # listens with the batch size as its backlog
+        for sock in self._server.sockets:
+            with socket.socket(fileno=os.dup(sock.fileno())) as same:
+                same.listen(BACKLOG)
         if self._sweeper is None:
             self._sweeper = asyncio.create_task(self._sweep(), name=f"{self.name} idle")
 
@@ -185,7 +203,6 @@ class Listener:
 
     async def stop(self) -> None:
         server, self._server = self._server, None
-        self._sock = None  # closed with the server
         sweeper, self._sweeper = self._sweeper, None
         if sweeper is not None:
             sweeper.cancel()

@@ -27,7 +27,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from .listener import Conn, Listener, ListenerStats
+from .listener import REQUESTS_PER_TURN, Conn, Listener, ListenerStats
 
 __all__ = ["DEFAULT_IDLE_TIMEOUT_S", "DEFAULT_MAX_CONNECTIONS", "EXC_GATEWAY_PATH",
            "EXC_ILLEGAL_ADDRESS", "EXC_ILLEGAL_FUNCTION", "EXC_ILLEGAL_VALUE",
@@ -78,7 +78,12 @@ class _ModbusConn(Conn):
     def handle(self) -> None:
         server: RegisterServer = self.listener.owner
         buf = self.buffer
+        answered = 0
         while len(buf) >= 7 and not self.closed:
+            if answered == REQUESTS_PER_TURN:
+                self.later()
+                return
+            answered += 1
             tid, protocol, length, unit = _MBAP.unpack_from(buf)
             if protocol != 0 or not 2 <= length <= 254:
                 self.drop("protocol")

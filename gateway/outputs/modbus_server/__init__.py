@@ -114,11 +114,11 @@ class ResultServer:
         server = self._new_server(new)
         await server.open()
 
-        async def commit() -> None:
+        async def commit() -> None:  # serve on the new address, then let the old one go
+            await server.start()
             old, self.server, self._listen = self.server, server, new.listen
             if old is not None:
                 await old.stop()
-            await server.start()
 
         return Swap(commit, server.stop)
 
@@ -130,9 +130,9 @@ class ResultServer:
         if server is None:
             return
         if cfg.listen != self._listen:  # not prepared (bound outside a reload): move now
-            await self.stop()
-            await self.start()
-            return
+            swap = await self.prepare(binding.config)
+            if swap is not None:
+                await swap.commit()
         server.listener.max_connections = cfg.max_connections
         server.listener.idle_timeout_s = cfg.idle_timeout_s
         server.set_identification(dict(cfg.identification))

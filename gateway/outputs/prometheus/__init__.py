@@ -63,11 +63,11 @@ class PrometheusSink:
         server = self._server(new)
         await server.open()
 
-        async def commit() -> None:
+        async def commit() -> None:  # serve on the new address, then let the old one go
+            await server.start()
             old, self.http, self.settings = self.http, server, new
             if old is not None:
                 await old.stop()
-            await server.start()
 
         return Swap(commit, server.stop)
 
@@ -84,12 +84,13 @@ class PrometheusSink:
         for name in sorted(names - self.devices):
             self.metrics.add_device(name)
         self.devices = names
-        old, self.settings = self.settings, cfg.metrics
+        if self.http is not None and self.settings is not None \
+                and cfg.metrics.listen != self.settings.listen:  # not prepared: move now
+            swap = await self.prepare(cfg)
+            if swap is not None:
+                await swap.commit()
+        self.settings = cfg.metrics
         if self.http is None:
-            return
-        if old is None or cfg.metrics.listen != old.listen:  # not prepared: move now
-            await self._stop_http()
-            await self._start_http()
             return
         self.http.listener.max_connections = cfg.metrics.max_connections
         self.http.listener.idle_timeout_s = cfg.metrics.idle_timeout_s
