@@ -7,11 +7,16 @@ Modules listed in SKIP (long soak runs) have their own make targets.
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
 import sys
 from pathlib import Path
 
 SKIP = {"soak"}
+# as the gateway's analysis workers (gateway.runtime.scheduler): one BLAS thread each, set
+# before numpy is first imported
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 
 def main(argv: list[str]) -> int:

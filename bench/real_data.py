@@ -43,8 +43,9 @@ from pathlib import Path
 
 import numpy as np
 
-from stiction import Verdict, analyze, realistic
+from stiction import Assessment, Verdict, analyze, realistic
 from stiction._detect import STICTION_SI, stiction_index
+from stiction._evidence import TESTS
 from stiction._oscillation import MIN_PERIOD, detect_oscillation
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -152,8 +153,32 @@ def si_only(c: Case, process: str) -> str:
     return str(Verdict.NO_STICTION if si.si <= 0.4 else Verdict.UNDETERMINED)
 
 
+_ASSESSED: dict[tuple[str, str], Assessment] = {}
+
+
 def full(c: Case, process: str) -> str:
-    return str(analyze(c.op, c.pv, ts=c.ts, process=process).verdict)
+    a = analyze(c.op, c.pv, ts=c.ts, process=process)
+    _ASSESSED[(c.name, process)] = a
+    return str(a.verdict)
+
+
+def _tests(cases: list[Case], process: Callable[[Case], str],
+           key: Callable[[Case], str]) -> None:
+    """What each test said, by group of cases: '+' votes (says stiction) and '-' votes (says
+    not) on the sticky cases and on the others, of how many."""
+    print("  what each test said (votes +1 / -1 of n), analyze:")
+    groups: dict[str, list[Case]] = collections.defaultdict(list)
+    for c in cases:
+        groups[key(c)].append(c)
+    names = [e.test for e in _ASSESSED[(cases[0].name, process(cases[0]))].evidence] or \
+        list(TESTS)
+    print(f"    {'':<24}" + "".join(f"{n[:11]:>12}" for n in names))
+    for label, members in sorted(groups.items()):
+        votes = np.array([[next((e.vote for e in _ASSESSED[(c.name, process(c))].evidence
+                                 if e.test == n), 0) for n in names] for c in members])
+        cells = "".join(f"{int((votes[:, i] > 0).sum()):>5}/{int((votes[:, i] < 0).sum()):<3}"
+                        f"{'':>3}" for i in range(len(names)))
+        print(f"    {label:<24}{cells} n={len(members)}")
 
 
 DETECTORS: dict[str, Callable[[Case, str], str]] = {"SI only": si_only, "analyze": full}
@@ -258,6 +283,8 @@ def plant() -> dict[str, float]:
               + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
     fps = sorted({c.group for c in cases if not c.sticky and v["analyze"][c.name] in CALLS})
     print(f"  non-sticky tags with any record called: {', '.join(fps) or 'none'}")
+    _tests(cases, lambda c: c.process,
+           lambda c: f"{'sticky' if c.sticky else 'not sticky'} {c.cause}")
     return {"tags": tags["analyze"]["tags (majority)"].balanced}
 
 
@@ -270,6 +297,7 @@ def tep() -> dict[str, float]:
     wrong = [c.name for c in cases if (v["analyze"][c.name] in CALLS) != c.sticky
              and c.cause != "sticky (IDV 15)"]
     print(f"  wrong, analyze (IDV 15 aside): {', '.join(wrong) or 'none'}")
+    _tests(cases, lambda c: c.process, lambda c: c.cause)
     return {"runs": _by(cases, v["analyze"], lambda c: "all")["all"].balanced}
 
 
@@ -286,6 +314,7 @@ def sims(per_seed: int) -> dict[str, float]:
         _table(f"all records but {', '.join(AMBIGUOUS)}",
                {det: {"records": _by(scored, v[det], lambda c: "all")["all"]} for det in v})
         _calls_by_cause(cases, v)
+        _tests(cases, process, lambda c: c.cause)
     return {}
 
 

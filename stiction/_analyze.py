@@ -213,7 +213,7 @@ def analyze_details(
                                   multi_jump=size.multi_jump, warnings=tuple(warnings), **base),
                        op_c, pv_c, size.quant, cycle, found)
     scale = 1.0 if span is None else span
-    unit = "of span" if span is not None else "OP units (give op_range for fractions of span)"
+    unit = "of span" if span is not None else "in OP units (give op_range for fractions of span)"
     fs_txt = "" if size.fs_op is None else f", fs {size.fs_op / scale:.4g}"
     no_kp = "" if size.fs_op is not None or kp_ is not None else " (fs needs kp)"
 
@@ -286,9 +286,10 @@ def _size(op: FloatArray, pv: FloatArray, cycle: Cycle, found: Findings, *,
           quant: Quantification | None, ts: float, kp: float | None, delay: float,
           integrating: bool, k: float) -> _Size:
     """fd (and fs, with kp) in OP units, by the first method that applies: the OP at the PV
-    jumps of a clean limit cycle (He & Wang 2014), the He-Wang valve fitted to PV, the
-    apparent stiction band of the OP-PV ellipse (Choudhury et al. 2006) or of the stuck
-    intervals (Kano et al. 2004), the OP travel before stick-slip episodes."""
+    jumps of a clean limit cycle (He & Wang 2014), the He-Wang valve fitted to PV (when
+    that fit says stiction), half the apparent stiction band of the OP-PV ellipse
+    (Choudhury et al. 2006). Stick-slip episodes without a cycle are not sized: one
+    episode's OP travel says how far OP went before this slip, not the band."""
     why = "no limit cycle to read the jumps from"
     multi = False
     warn: tuple[str, ...] = ()
@@ -323,11 +324,4 @@ def _size(op: FloatArray, pv: FloatArray, cycle: Cycle, found: Findings, *,
             found.vote("ellipse") >= 0:
         return _Size(ell.band / 2.0, None, None, 0, "half the apparent stiction band of the "
                      f"OP-PV ellipse (Choudhury et al. 2006; {why})", multi, warn, quant)
-    if found.kano.band is not None and found.kano.band > 0:
-        return _Size(found.kano.band / 2.0, None, None, 0, "half the OP travel while PV "
-                     f"stood still (Kano et al. 2004; {why})", multi, warn, quant)
-    if found.stick_slip.detected:
-        travel = float(np.median([abs(e.op_travel) for e in found.stick_slip.episodes]))
-        return _Size(travel / 2.0, None, None, 0, "half the OP travel before the stick-slip "
-                     f"episodes ({why})", multi, warn, quant)
     return _Size(None, None, None, 0, why, multi, warn, quant)

@@ -142,7 +142,6 @@ EPSILON_FLOOR = 1e-6  # ... and at least this share of its largest value
 THIRD_FLOOR = 1e-4  # third-harmonic power floor, share of the fundamental's
 HARMONICS = 32  # with a period: bifrequencies up to this harmonic of the fundamental
 MIN_PERIOD = 4.0  # samples: a faster cycle has no harmonic below Nyquist
-FLAT = 1e-12  # detrended peak / raw peak below this: constant to float precision
 _BLOCK = 8192  # complex products per block in the bispectrum sum (128 kB)
 
 
@@ -186,7 +185,7 @@ def bicoherence_test(x: ArrayLike, *, period: float | None = None) -> Bicoherenc
     arr = np.asarray(x, dtype=np.float64)
     if arr.ndim != 1:
         raise ParameterError("x", f"must be 1-D, has ndim {arr.ndim}")
-    y = _normalised(arr)
+    y = v.unit_detrended(arr, name="signal", min_samples=MIN_SEGMENT_LENGTH)
     if isinstance(y, str):
         return Bicoherence(0, y)
     if p is not None and p < MIN_PERIOD:
@@ -246,26 +245,6 @@ def _say(res: Bicoherence, vote: int, note: str) -> Bicoherence:
 
 def _check_period(period: float | None) -> float | None:
     return None if period is None else v.positive_scalar("period", period)
-
-
-def _normalised(x: FloatArray) -> FloatArray | str:
-    """``x`` scaled to unit peak with mean and trend removed, or why it cannot be used."""
-    n = x.size
-    if n < MIN_SEGMENT_LENGTH:
-        return f"record too short to tell: {n} samples"
-    if not np.all(np.isfinite(x)):
-        return "signal has non-finite samples"
-    peak = float(np.max(np.abs(x)))
-    if peak == 0.0:
-        return "signal is constant"
-    y = x / peak
-    t = np.arange(n) - (n - 1) / 2.0
-    y = y - y.mean()
-    y = y - (v.dot(t, y) / v.dot(t, t)) * t
-    span = float(np.max(np.abs(y)))
-    if not span > FLAT:
-        return "signal is constant"
-    return np.asarray(y / span)
 
 
 def _count(n: int, seg_len: int) -> int:

@@ -143,9 +143,11 @@ def fit_conic(x: FloatArray, y: FloatArray) -> FloatArray | None:
     with 4ac - b^2 > 0, or None when the points admit no ellipse."""
     d1 = np.stack((x * x, x * y, y * y), axis=1)
     d2 = np.stack((x, y, np.ones_like(x)), axis=1)
-    s1 = d1.T @ d1
-    s2 = d1.T @ d2
-    s3 = d2.T @ d2
+    # einsum, not BLAS: a BLAS product over n rows goes multi-threaded on long windows and
+    # costs more in thread hand-off than in arithmetic on a busy edge CPU (see _validate.dot)
+    s1 = np.einsum("ni,nj->ij", d1, d1)
+    s2 = np.einsum("ni,nj->ij", d1, d2)
+    s3 = np.einsum("ni,nj->ij", d2, d2)
     try:
         t = -np.linalg.solve(s3, s2.T)
     except np.linalg.LinAlgError:

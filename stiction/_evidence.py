@@ -17,7 +17,9 @@ oscillation the shape tests look at, :func:`gather` runs every test and returns 
     nonlinear.
 ``horch``
     Horch (1999) odd or even OP-PV cross-correlation, or for an integrating loop Horch
-    (2000) PV curvature (:mod:`._horch`).
+    (2000) PV curvature (:mod:`._horch`), on regular cycles only (Thornhill's regularity
+    > 1): on a loop wandering under random loads the cross-correlation's lobes are as
+    likely odd as even.
 ``ellipse``
     Choudhury et al. (2006) OP-PV pattern of the band-passed cycle (:mod:`._ellipse`):
     a thin ellipse (PV follows OP) says not stiction; it also sizes the apparent band.
@@ -25,7 +27,8 @@ oscillation the shape tests look at, :func:`gather` runs every test and returns 
     Kano et al. (2004) stuck intervals: PV still while OP ramps, then a slip
     (:mod:`._kano`).
 ``stick_slip``
-    Stick-slip episodes without a cycle (:mod:`._stickslip`): only ever +1.
+    Stick-slip episodes without a cycle (:mod:`._stickslip`): +1 from ``MIN_EPISODES``
+    episodes with one gain sign; never -1.
 ``hammerstein``
     The He-Wang valve in a Hammerstein fit against a linear valve: does a sticky valve
     explain PV better, and by how much (:mod:`._hammerstein`).
@@ -66,8 +69,16 @@ __all__ = ["MIN_CYCLES", "TESTS", "Cycle", "Findings", "find_cycle", "gather",
 TESTS = ("si_op", "si_pv", "bicoherence", "horch", "ellipse", "kano", "stick_slip",
          "hammerstein", "fast_cycle")
 MIN_REGULARITY = 0.5
+MIN_EPISODES = 2
+"""Stick-slip episodes (with one gain sign) a window needs before the test votes: one
+episode alone made two of three false calls on outside loops (a fan without a valve, a loop
+moved by a disturbance)."""
 MIN_CYCLES = 2.5
-"""Fewer periods than this in the window: too short to judge a cycle's shape."""
+"""Fewer periods than this in the window: too short to size a limit cycle from."""
+SHAPE_CYCLES = 5.0
+"""Periods the stiction index needs before it votes: an SI over fewer than ten half cycles
+swings by +-0.1 from window to window on one loop (a sine-like disturbance reads 0.62 on four
+cycles of a Tennessee Eastman run), across the 0.6 line."""
 BASELINE_FRACTION = 3  # running-median window: a third of the window
 
 
@@ -78,6 +89,7 @@ class Signal:
     x: FloatArray
     osc: Oscillation
     significance: float
+    unstepped: FloatArray  # baseline and line removed, whichever variant ``x`` is
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,14 +117,13 @@ def _unstepped(x: FloatArray) -> FloatArray:
 
 def _signal(x: FloatArray) -> Signal:
     best: Signal | None = None
-    variants = [detrend(x)]
-    if x.size >= 48:
-        variants.append(_unstepped(x))
+    unstepped = _unstepped(x)
+    variants = [detrend(x), unstepped] if x.size >= 48 else [unstepped]
     for y in variants:
         osc = detect_oscillation(y, min_regularity=MIN_REGULARITY)
         sig = osc.significance if osc.oscillating else -1.0
         if best is None or sig > best.significance:
-            best = Signal(y, osc, sig)
+            best = Signal(y, osc, sig, unstepped)
     assert best is not None
     return best
 
@@ -139,12 +150,16 @@ def _si(name: str, s: Signal, fallback: float | None) -> Evidence:
                         f"({period:.1f} samples a period, need {MIN_PERIOD:g})")
     if s.x.size / period < MIN_CYCLES:
         return Evidence(name, None, 0, f"{label}: {s.x.size / period:.1f} cycles, too few "
-                        f"to judge the shape (need {MIN_CYCLES:g})")
+                        f"to judge the shape (need {SHAPE_CYCLES:g})")
     si = stiction_index(s.x, period)
     if si.si is None:
         return Evidence(name, None, 0, f"too few clean half periods in {label} to fit")
     if not si.resolved:
         return Evidence(name, si.si, 0, f"{label} too noisy to tell a triangle from a sine")
+    cycles = s.x.size / period
+    if cycles < SHAPE_CYCLES:
+        return Evidence(name, si.si, 0, f"{label}: SI {si.si:.2f} over {cycles:.1f} cycles, "
+                        f"too few to vote (need {SHAPE_CYCLES:g})")
     if si.si >= STICTION_SI:
         return Evidence(name, si.si, 1, f"{label} half cycles fit a triangle")
     if si.si <= NO_STICTION_SI:
@@ -153,6 +168,11 @@ def _si(name: str, s: Signal, fallback: float | None) -> Evidence:
 
 
 def _stick_slip(ss: StickSlip) -> Evidence:
+    if ss.detected and len(ss.episodes) < MIN_EPISODES:
+        e = ss.episodes[0]
+        return Evidence("stick_slip", 1.0, 0, f"one stick-slip episode (OP ramped "
+                        f"{e.op_travel:+.3g} with PV still, then PV jumped {e.jump:+.3g}): a "
+                        "hint, not evidence alone (a load step can do the same once)")
     if not ss.detected:
         note = ("stick-slip episodes with opposite gain signs" if ss.episodes
                 else "no stick-slip episode")
@@ -194,15 +214,15 @@ def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool, t
         "ellipse": ell.evidence() if ell is not None else Evidence("ellipse", None, 0, no_cycle),
         "kano": kano.evidence(),
         "hammerstein": ham.evidence(),
-        "fast_cycle": fast_cycle(_unstepped(op), _unstepped(pv)).evidence(),
+        "fast_cycle": fast_cycle(cycle.op.unstepped, cycle.pv.unstepped).evidence(),
         "si_op": _si("si_op", cycle.op, p),
         "si_pv": _si("si_pv", cycle.pv, p),
         "bicoherence": (bicoherence_test(cycle.pv.x, period=horch_period).evidence()
                         if horch_period is not None
                         else Evidence("bicoherence", None, 0, no_cycle)),
         "horch": (horch_test(cycle.op.x, cycle.pv.x, period=horch_period,
-                             integrating=integrating).evidence() if p is not None
-                  else Evidence("horch", None, 0, no_cycle)),
+                             integrating=integrating).evidence() if cycle.regular
+                  else Evidence("horch", None, 0, "no regular cycle to correlate")),
         "stick_slip": _stick_slip(ss),
     }
     return Findings(tuple(found[name] for name in TESTS), ell, kano, ham, ss)

@@ -65,8 +65,9 @@ class FastCycle:
 
 def _kurtosis(x: FloatArray) -> float:
     y = x - x.mean()
-    v = float(np.mean(y * y))
-    return float(np.mean(y**4)) / (v * v) - 3.0 if v > 0 else 0.0
+    y2 = y * y
+    v = float(np.mean(y2))
+    return float(np.mean(y2 * y2)) / (v * v) - 3.0 if v > 0 else 0.0
 
 
 def _crossing(x: FloatArray) -> float:

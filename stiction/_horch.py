@@ -125,7 +125,6 @@ CURVE_FRACTION = 12.0  # curvature scale h = period / this
 MIN_SNR = 3.0  # SD of the curvature over its SD from noise alone
 SPIKY_KURTOSIS = 4.0  # curvature kurtosis at or above: ramps with sharp turns (stiction)
 SINE_KURTOSIS = 2.25  # at or below: two-peaked, sinusoidal PV (no stiction)
-FLAT = 1e-12  # detrended peak / raw peak below this: constant to float precision
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -184,10 +183,10 @@ def horch_test(op: ArrayLike, pv: ArrayLike, *, period: float | None = None,
     for name, arr in (("OP", u_raw), ("PV", y_raw)):
         if not np.all(np.isfinite(arr)):
             return Horch(0, f"{name} has non-finite samples", integ, p)
-    y = _normalised(y_raw, "PV")
+    y = v.unit_detrended(y_raw, name="PV", min_samples=MIN_SAMPLES)
     if isinstance(y, str):
         return Horch(0, y, integ, p)
-    u = _normalised(u_raw, "OP")
+    u = v.unit_detrended(u_raw, name="OP", min_samples=MIN_SAMPLES)
     if isinstance(u, str) and not integ:
         return Horch(0, u, integ, p)
     if p is None:
@@ -205,24 +204,6 @@ def horch_test(op: ArrayLike, pv: ArrayLike, *, period: float | None = None,
         return _curvature(y, p, _quantum(y_raw, y))
     assert not isinstance(u, str)
     return _cross_correlation(u, y, p)
-
-
-def _normalised(x: FloatArray, name: str) -> FloatArray | str:
-    """``x`` scaled to unit peak with mean and trend removed, or why it cannot be used."""
-    n = x.size
-    if n < MIN_SAMPLES:
-        return f"record too short to tell: {n} samples"
-    peak = float(np.max(np.abs(x)))
-    if peak == 0.0:
-        return f"{name} is constant"
-    y = x / peak
-    t = np.arange(n) - (n - 1) / 2.0
-    y = y - y.mean()
-    y = y - (v.dot(t, y) / v.dot(t, t)) * t
-    span = float(np.max(np.abs(y)))
-    if not span > FLAT:
-        return f"{name} is constant"
-    return np.asarray(y / span)
 
 
 def _period(pv: FloatArray, op: FloatArray | None, integrating: bool) -> float | None:

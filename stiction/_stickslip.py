@@ -98,30 +98,62 @@ def _means(x: FloatArray, m: int) -> tuple[FloatArray, FloatArray]:
 
 
 def _candidates(a: FloatArray, thr: float, m: int) -> list[int]:
-    """Positions of the largest ``a`` above ``thr``, at least ``2 m`` apart."""
+    """Positions of the largest ``a`` above ``thr``, at least ``2 m`` apart (greedy, largest
+    first: each pick blocks its neighbourhood)."""
+    above = np.flatnonzero(a >= thr)
+    blocked = np.zeros(a.size, dtype=bool)
     picked: list[int] = []
-    for i in np.argsort(-a).tolist():
-        if a[i] < thr:
-            break
-        if all(abs(i - j) >= 2 * m for j in picked):
+    for i in above[np.argsort(-a[above], kind="stable")].tolist():
+        if not blocked[i]:
             picked.append(i)
+            blocked[max(0, i - 2 * m + 1) : i + 2 * m] = True
     return sorted(picked)
+
+
+def _still_since(ys: FloatArray, end: int, level: float, band: float) -> int:
+    """First index of the stretch ending at ``end`` (inclusive) in which ``ys`` stays within
+    ``band`` of ``level``; searched backwards in growing chunks, so a short stuck phase
+    costs little in a long window."""
+    hi = end + 1
+    width = 64
+    while hi > 0:
+        lo = max(0, hi - width)
+        away = np.flatnonzero(np.abs(ys[lo:hi] - level) > band)
+        if away.size:
+            return lo + int(away[-1]) + 1
+        hi, width = lo, 4 * width
+    return 0
+
+
+def _spread(x: FloatArray) -> float:
+    """The 10-90 % spread of ``x`` (nearest-rank; cheaper than ``np.percentile``)."""
+    k = x.size - 1
+    lo, hi = round(0.1 * k), round(0.9 * k)
+    part = np.partition(x, (lo, hi))
+    return float(part[hi] - part[lo])
 
 
 def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
     """Find stick-slip episodes in a window of OP and PV (equal-length, finite)."""
     found: list[Episode] = []
+    if op.size < 5 * M + 2:
+        return StickSlip((), True)
+    p2, p98 = np.percentile(pv, [2, 98])
+    noise = (noise_sd(pv), noise_sd(op), float(p98 - p2))
     for m in SCALES:
-        for e in _episodes(op, pv, m):
-            if all(abs(e.at - f.at) >= 2 * m for f in found):
+        taken = np.array([f.at for f in found])
+        for e in _episodes(op, pv, m, noise):
+            if not np.any(np.abs(taken - e.at) < 2 * m):
                 found.append(e)
     found.sort(key=lambda e: e.at)
     signs = {math.copysign(1.0, e.jump) * math.copysign(1.0, e.op_travel) for e in found}
     return StickSlip(tuple(found), len(signs) <= 1)
 
 
-def _episodes(op: FloatArray, pv: FloatArray, m: int) -> list[Episode]:
-    """The episodes seen with ``m``-sample means on either side of the slip."""
+def _episodes(op: FloatArray, pv: FloatArray, m: int, noise: tuple[float, float, float]
+              ) -> list[Episode]:
+    """The episodes seen with ``m``-sample means on either side of the slip; ``noise``: the
+    noise SDs of PV and OP and PV's 2-98 % range."""
     n = op.size
     if n < 5 * m + 2:  # the means before and after, a stuck phase of 3 m
         return []
@@ -130,20 +162,17 @@ def _episodes(op: FloatArray, pv: FloatArray, m: int) -> list[Episode]:
     t = np.arange(m, n - m + 1)
     dy = (cy[t + m] - 2.0 * cy[t] + cy[t - m]) / m  # mean after - mean before
     du = (cu[t + m] - 2.0 * cu[t] + cu[t - m]) / m
-    p2, p98 = np.percentile(pv, [2, 98])
-    rng = float(p98 - p2)
-    thr = max(JUMP_NOISE * noise_sd(pv) * math.sqrt(2.0 / m), JUMP_RANGE_FRACTION * rng)
+    sd_y, sd_u, rng = noise
+    thr = max(JUMP_NOISE * sd_y * math.sqrt(2.0 / m), JUMP_RANGE_FRACTION * rng)
     if thr <= 0:
         return []
-    sd_u = noise_sd(op)
     found: list[Episode] = []
     for i in _candidates(np.abs(dy), thr, m):
         at = int(t[i])
         d = float(dy[i])
         pre = float((cy[at] - cy[at - m]) / m)
         # the stuck phase: back from the slip while PV stays near its pre-slip level
-        away = np.flatnonzero(np.abs(ys[: at - m + 1] - pre) > STUCK_BAND * abs(d))
-        start = int(away[-1]) + 1 if away.size else 0
+        start = _still_since(ys, at - m, pre, STUCK_BAND * abs(d))
         # the force was built since OP's last turn: its extreme (furthest from the pre-slip
         # OP) while PV stood still
         end = at - m
@@ -152,19 +181,19 @@ def _episodes(op: FloatArray, pv: FloatArray, m: int) -> list[Episode]:
         stuck = end - lo
         if stuck < 3 * m:
             continue
-        p10, p90 = np.percentile(ys[lo : end + 1], [10, 90])
-        if p90 - p10 > STILL_SPREAD * abs(d):
-            continue
+        # the cheap scalar checks first, the still-PV spread (a partition) last
         travel = float(us[end] - us[lo])
-        path = us[lo : end + 1 : m]
-        tv = float(np.sum(np.abs(np.diff(path)))) if path.size > 1 else 0.0
-        if tv <= 0 or abs(travel) < MONOTONE * tv or abs(travel) < OP_NOISE * sd_u:
-            continue
         step = float(du[i])
-        if abs(step) >= KICK_RATIO * abs(travel):
+        if abs(travel) < OP_NOISE * sd_u or abs(step) >= KICK_RATIO * abs(travel):
             continue
         if math.copysign(1.0, step) == math.copysign(1.0, travel) \
                 and abs(step) >= SAME_WAY_KICK * abs(travel):
+            continue
+        path = us[lo : end + 1 : m]
+        tv = float(np.sum(np.abs(np.diff(path)))) if path.size > 1 else 0.0
+        if tv <= 0 or abs(travel) < MONOTONE * tv:
+            continue
+        if _spread(ys[lo : end + 1]) > STILL_SPREAD * abs(d):
             continue
         found.append(Episode(at, d, travel, step, stuck))
     return found

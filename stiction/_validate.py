@@ -78,3 +78,30 @@ def _show(value: ArrayLike) -> str:
         return repr(arr.item())
     bad = arr[~np.isfinite(arr) | (arr < 0)] if arr.dtype.kind == "f" else arr
     return f"an array containing {bad.flat[0] if bad.size else arr.flat[0]!r}"
+
+
+FLAT = 1e-12
+"""Detrended peak over raw peak below this: the signal is constant to float precision."""
+
+
+def unit_detrended(x: NDArray[np.floating[Any]], *, name: str, min_samples: int
+                   ) -> FloatArray | str:
+    """``x`` with mean and straight line removed, scaled to unit peak (scaled first, so no
+    unit or magnitude, 1e-300 or 1e300, reaches the arithmetic), or why it cannot be used:
+    too short, non-finite, constant."""
+    n = x.size
+    if n < min_samples:
+        return f"record too short to tell: {n} samples"
+    if not np.all(np.isfinite(x)):
+        return f"{name} has non-finite samples"
+    peak = float(np.max(np.abs(x)))
+    if peak == 0.0:
+        return f"{name} is constant"
+    y = x / peak
+    t = np.arange(n) - (n - 1) / 2.0
+    y = y - y.mean()
+    y = y - (dot(t, y) / dot(t, t)) * t
+    span = float(np.max(np.abs(y)))
+    if not span > FLAT:
+        return f"{name} is constant"
+    return np.asarray(y / span, dtype=np.float64)

@@ -36,6 +36,10 @@ from ..core.windows import LoopGroup
 __all__ = ["DEFAULT_ANALYZE", "WORKER_NICE", "AnalysisScheduler", "die_with_parent",
            "log_verdict_change"]
 
+SINGLE_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""Set to 1 for the analysis workers unless already set (see
+:meth:`AnalysisScheduler.start`)."""
+
 log = logging.getLogger("gateway.analysis")
 
 WORKER_NICE = 10
@@ -116,6 +120,11 @@ class AnalysisScheduler:
             self._pool = self._executor()
             return
         ctx = multiprocessing.get_context("spawn")
+        # one worker per core, each on one BLAS thread: a BLAS that spreads one window's
+        # products over threads only contends with the other workers (the spawned workers
+        # take this environment; a value the operator set wins)
+        for var in SINGLE_THREAD_ENV:
+            os.environ.setdefault(var, "1")
         self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx,
                                          initializer=_init_worker,
                                          initargs=(self.nice, os.getpid()))

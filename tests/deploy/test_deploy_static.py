@@ -77,6 +77,7 @@ def test_rules_cover_what_plant_engineers_asked_for() -> None:
     alerts = {q.where.split()[-1]: q.expr for q in rule_queries() if q.kind == "alert"}
     assert set(alerts) == {
         "LoopStictionDiagnosed",  # a loop newly diagnosed with stiction
+        "LoopValveNotResponding",  # OP travels, PV stands still
         "LoopFrictionAboveThreshold",  # fd above a configurable threshold
         "StictionDeviceDown",  # a device down
         "StictionGatewayDown",  # the gateway itself not scraped

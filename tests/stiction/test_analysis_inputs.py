@@ -78,16 +78,14 @@ def test_too_short() -> None:
 
 def test_too_short_for_the_period(loop: tuple[np.ndarray, np.ndarray]) -> None:
     op, pv = loop
-    a = analyze(op[:450], pv[:450], ts=1.0)  # two periods of ~226 s
+    a = analyze(op[:450], pv[:450], ts=1.0, op_range=(0.0, 100.0))  # two periods of ~226 s
     # never sized from two periods; the slips themselves may be seen (the valve is sticky)
     assert a.fd is None
     assert a.fs is None
+    si = next(e for e in a.evidence if e.test == "si_op")
+    assert si.vote == 0  # too few cycles, or no cycle, to judge a shape
     if a.verdict == Verdict.STICTION:
-        assert "stick-slip" in a.reason
         assert "not sized" in a.reason
-    else:
-        assert a.verdict in (Verdict.BAD_DATA, Verdict.NOT_OSCILLATING)
-        assert "too short" in a.reason or "ACF" in a.reason
 
 
 def test_all_nan() -> None:
@@ -210,11 +208,28 @@ def test_fine_quantisation_is_only_a_warning(loop: tuple[np.ndarray, np.ndarray]
     assert any("quantised" in w for w in a.warnings)
 
 
-def test_oscillation_too_fast_for_the_sample_time() -> None:
+def _fast(lag_cycles: float) -> Assessment:
+    """A steady cycle of 5 samples (too fast for any shape), PV lagging OP by a share of it."""
     t = np.arange(600.0)
-    op = 50 + 10 * np.sin(2 * np.pi * t / 5.0)
-    pv = 50 + np.cos(2 * np.pi * t / 5.0) + 0.01 * np.sin(t * 0.37)
-    _bad(analyze(op, pv, ts=1.0), "too short to see")
+    rng = np.random.default_rng(3)
+    op = 50 + 10 * np.sin(2 * np.pi * t / 5.0) + rng.normal(0, 0.3, t.size)
+    pv = 20 + np.sin(2 * np.pi * (t / 5.0 - lag_cycles)) + rng.normal(0, 0.03, t.size)
+    return analyze(op, pv, ts=1.0)
+
+
+def test_oscillation_too_fast_for_its_shape() -> None:
+    """Too fast to see a triangle: the shape tests abstain and say why; the fast-cycle test
+    decides from the OP-PV lag: PV following OP is a valve that follows (not stiction),
+    PV a quarter cycle behind a steady cycle is the sticky valve's signature (the
+    Tennessee Eastman IDV 14 reactor valve, logged every 180 s)."""
+    follows = _fast(0.0)
+    assert follows.verdict != Verdict.STICTION, follows
+    votes = {e.test: e for e in follows.evidence}
+    assert votes["si_op"].vote == 0
+    assert "too fast to see its shape" in votes["si_op"].note
+    assert votes["fast_cycle"].vote == -1
+    lags = _fast(0.25)
+    assert {e.test: e.vote for e in lags.evidence}["fast_cycle"] == 1
 
 
 def test_fs_needs_kp(loop: tuple[np.ndarray, np.ndarray]) -> None:

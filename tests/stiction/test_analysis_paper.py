@@ -117,12 +117,26 @@ def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float, see
                      rows=[p for p in PAPER_ROWS if p.case == f"tau={tau:.0f}"])
     (r,) = rows
     a = r.assessment
-    if a.verdict == Verdict.STICTION:
-        assert a.fd is not None
-        assert a.fs is not None
-        assert abs(a.fd / 0.18 - 1) < 0.05
-        assert abs(a.fs / 0.20 - 1) < 0.05
-    else:
+    assert not _confidently_wrong(r), a
+    if a.verdict == Verdict.STICTION and a.fd is None:
+        assert a.multi_jump or "not sized" in a.reason
+    if a.verdict != Verdict.STICTION:
         assert a.fd is None
         assert a.fs is None
-        assert a.multi_jump or "SI" in a.reason
+
+
+@pytest.mark.parametrize(("noise", "seed"), [(0.0, 0), (0.05, 1), (0.05, 2)])
+def test_table6_slow_loops_330_to_390_are_stiction_and_sized(noise: float, seed: int) -> None:
+    """Table 6, tau 330-390 s (paper SI 0.84-0.64, detected): an independent simulator
+    left them `undetermined` on the SI alone; with PV's triangle, the odd OP-PV
+    correlation and the fitted valve they are called and sized within 5 %."""
+    rows = reproduce(noise=noise, seed=seed,
+                     rows=[p for p in PAPER_ROWS if p.case in ("tau=330", "tau=360", "tau=390")])
+    assert len(rows) == 3
+    for r in rows:
+        a = r.assessment
+        assert a.verdict == Verdict.STICTION, (r.paper.case, a.reason)
+        assert a.fd is not None
+        assert a.fs is not None
+        assert abs(a.fd / 0.18 - 1) < 0.05, (r.paper.case, a.fd)
+        assert abs(a.fs / 0.20 - 1) < 0.05, (r.paper.case, a.fs)

@@ -48,9 +48,9 @@ def test_stick_slip_episode_is_found() -> None:
     assert a.verdict == Verdict.STICTION, a
     assert {e.test: e.vote for e in a.evidence}["stick_slip"] == 1
     assert "stick_slip" in a.reason
-    # no limit cycle for the paper's method: sized from the OP travel while PV stood still
-    assert a.fd_op is not None
-    assert "no limit cycle to read the jumps from" in a.reason
+    # no limit cycle to size from: one episode's OP travel is not the band
+    assert a.fd_op is None
+    assert "not sized: no limit cycle to read the jumps from" in a.reason
 
 
 def test_jump_with_an_op_step_is_a_response_not_a_slip() -> None:
@@ -92,7 +92,12 @@ def test_slow_slip_after_an_op_reversal_is_found() -> None:
     (e,) = ss.episodes
     assert 700 <= e.at <= 715
     assert e.op_travel == pytest.approx(2.0, abs=0.3)
-    assert analyze(op, pv, ts=10.0).verdict == Verdict.STICTION
+    # one episode is a hint, not a vote: a load step can do the same once
+    a = analyze(op, pv, ts=10.0)
+    ev = next(x for x in a.evidence if x.test == "stick_slip")
+    assert ev.vote == 0
+    assert ev.note.startswith("one stick-slip episode")
+    assert a.verdict != Verdict.STICTION
 
 
 def test_pv_still_and_op_still_is_not_stick_slip() -> None:

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy import signal
 
 from stiction import Evidence, ParameterError
-from stiction._hammerstein import hammerstein_test
+from stiction._hammerstein import controller_sign, hammerstein_test
 from stiction._oscillation import detect_oscillation
 from stiction.scenarios import SimResult, scenario, simulate
 
@@ -92,13 +92,23 @@ def test_healthy_loops_with_random_loads_never_say_yes(load_sd: float, load_tau:
 ])
 def test_linear_oscillations_say_no(name: str, kw: dict[str, float]) -> None:
     """A sinusoidal disturbance and a loop ringing at its resonance: the linear valve
-    explains PV and the sticky one adds nothing."""
+    explains PV and the sticky one adds nothing. The loop at 95 % of its ultimate gain rings
+    on its random load, which then carries half of PV through the process (the linear valve
+    explains 45-50 % through the process, 95 % through the controller's own relation); the
+    sticky valve's extra freedom may take a little of that load (no -1 then), never +1."""
+    votes = []
     for noise, seed in ((0.05, 1), (0.2, 2)):
         res = _sim(name, noise, seed, duration=4000.0, **kw)
         op, pv = res.op[200:], res.pv[200:]
         fit = hammerstein_test(op, pv, ts=1.0, period=_period(op))
-        assert fit.vote == -1, (noise, seed, fit)
-        assert "linear valve" in fit.note
+        votes.append(fit.vote)
+        assert fit.vote <= 0, (noise, seed, fit)
+        if fit.vote == -1:
+            assert "linear valve" in fit.note
+    if name == "disturbance":
+        assert votes == [-1, -1]
+    else:
+        assert -1 in votes
 
 
 def test_pure_linear_response_says_no() -> None:
@@ -234,3 +244,38 @@ def test_random_data_never_raises(*, n: int, seed: int, scale: float, period: fl
     fit = hammerstein_test(op, pv, ts=1.0, period=period, integrating=integrating)
     assert fit.vote in (-1, 0, 1)
     assert isinstance(fit.note, str) and fit.note
+
+
+@pytest.mark.parametrize("name", ["disturbance", "healthy"])
+def test_setpoint_step_is_not_a_valve(name: str) -> None:
+    """A setpoint step pins the linear valve's gain; in the quiet periods OP then moves
+    against the load while PV holds, which a valve that does not move explains better (the
+    known false alarm). Period by period, with its own gain and any phase, the linear valve
+    explains those periods as well: no +1, with the detected period or periods forced on
+    it (the earlier comparison said +1 on 9 of these 36 windows)."""
+    for load_sd, load_tau in ((0.005, 30.0), (0.02, 600.0)):
+        for step in (5.0, 15.0):
+            for seed in (1, 2):
+                res = _sim(name, 0.05, seed, load_sd=load_sd, load_tau=load_tau,
+                           sp_step=step, sp_step_time=2000.0, duration=4000.0)
+                op, pv = res.op[400:], res.pv[400:]
+                for period in (_period(op), 300.0, 600.0):
+                    if period is None:
+                        continue
+                    fit = hammerstein_test(op, pv, ts=1.0, period=period)
+                    assert fit.vote != 1, (load_sd, load_tau, step, seed, period, fit)
+
+
+@pytest.mark.parametrize("name", ["table4-case2", "healthy", "disturbance",
+                                  "aggressive-tuning"])
+def test_controller_sign_from_the_integral_action(name: str) -> None:
+    """The sign of the controller's action, whatever the valve and the units: OP in reverse
+    acting units or PV of a reverse-acting process turn it round."""
+    res = _sim(name, 0.2, 1, load_sd=0.01, load_tau=60.0, duration=4000.0)
+    op, pv = res.op[200:], res.pv[200:]
+    for period in (_period(op) or 300.0, 100.0, 600.0):
+        assert controller_sign(op, pv, period) == 1.0
+        assert controller_sign(7.0 * op + 300.0, 0.01 * pv - 5.0, period) == 1.0
+        assert controller_sign(100.0 - op, pv, period) == -1.0
+        assert controller_sign(op, -pv, period) == -1.0
+    assert controller_sign(np.ones(50), np.arange(50.0), 10.0) == 0.0
