@@ -1,4 +1,5 @@
-"""`stiction-gateway` command line: run, check-config, plc-sim, demo, opcua-cert.
+"""`stiction-gateway` command line: run, check-config, plc-sim, demo, opcua-cert, and the
+onboarding commands import-tags, probe, browse, result-map (:mod:`.runtime.onboarding`).
 
 Exit status: 0 ok, 1 runtime failure (e.g. a port in use), 2 bad usage or bad config (the
 problems are printed on stderr, one per line, each naming the file, section and key).
@@ -13,7 +14,9 @@ import sys
 from pathlib import Path
 
 from .config import load_config
+from .config.addresses import describe_assigned
 from .errors import ConfigError, GatewayError
+from .runtime import onboarding
 from .runtime.logs import install_rate_limit
 from .runtime.service import install_stop_signals, run
 
@@ -44,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("opcua-cert", add_help=False,
                    help="create an OPC UA client (or --server) certificate and key "
                         "(see `stiction-gateway opcua-cert --help`, docs/opcua.md)")
+    onboarding.add_commands(sub)
     return parser
 
 
@@ -96,7 +100,11 @@ def _dispatch(args: argparse.Namespace) -> int:
             if problems:
                 raise ConfigError(problems)
         print(f"{args.file}: ok ({len(cfg.devices)} device(s), {len(cfg.loops)} loop(s))")
+        for line in describe_assigned(cfg):
+            print(line)
         return 0
+    if args.command in onboarding.COMMANDS:
+        return onboarding.dispatch(args)
     if args.command == "run":
         return run(load_config(args.config), args.config)
     if args.command == "plc-sim":

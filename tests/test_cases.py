@@ -2,7 +2,8 @@
 ``expected.registers``, all run by the one test below.
 
 * ``expected.err``: the config is refused; the file holds every problem, in the order
-  ``check-config`` prints them (the config's path written as ``gateway.yaml``).
+  ``check-config`` prints them (the config's path written as ``gateway.yaml``, a tag list
+  beside it by its name).
 * ``expected.registers``: the config loads; its devices are ``protocol: memory`` ones. Every
   device is polled once per row of its ``values`` (a fake clock from Unix time 1.7e9, one
   poll period per round), one analysis round runs with ``gateway_fake_analyze`` (verdicts
@@ -36,7 +37,8 @@ def _err(path: Path) -> str:
     try:
         load_config(path)
     except ConfigError as exc:
-        return "".join(line.replace(str(path), "gateway.yaml", 1) + "\n"
+        return "".join(line.replace(str(path), "gateway.yaml", 1)
+                       .replace(f"{path.parent}{os.sep}", "") + "\n"  # its tag lists
                        for line in exc.problems)
     return "(no problem: the config loads)\n"
 

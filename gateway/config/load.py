@@ -6,11 +6,14 @@ the section (``device plc1``, ``loop FIC101``, ``gateway``...) and the key.
 
 Protocol-specific keys (a Modbus device's ``host``, a point's ``type``...) are parsed by the
 protocol's plugin module, found by name in :mod:`gateway.config.plugins`; the core keys are
-parsed here, all with the one validator (:mod:`gateway.config.schema`).
+parsed here, all with the one validator (:mod:`gateway.config.schema`). Loops may also come
+from tag lists (``loops_csv``, :mod:`gateway.config.tags`); loops without ``result_address``
+get one by the rule of :mod:`gateway.config.addresses`.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Callable, Mapping
 from typing import Any, TypeGuard, TypeVar
@@ -18,9 +21,11 @@ from typing import Any, TypeGuard, TypeVar
 from ..errors import ConfigError
 from ..wire.results import MAX_RESULT_UNIT_ID, RESULT_BLOCK_SIZE, overlapping_blocks
 from . import schema as s
+from .addresses import assign_result_addresses
 from .checks import check_config, identification
 from .limits import read_document
 from .model import (
+    DEFAULT_POLL_INTERVAL_S,
     MIN_WINDOW_SAMPLES,
     PROCESSES,
     WORD_ORDERS,
@@ -31,9 +36,11 @@ from .model import (
     MetricsSettings,
     PointConfig,
     ResultServerSettings,
+    default_timeout,
 )
 from .plugins import input_names, input_plugin
 from .schema import MISSING, Problems, Section
+from .tags import tag_entries, tag_tables
 
 __all__ = ["load_config", "parse_config"]
 
@@ -65,8 +72,10 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
     for i, _name, sec in s.entries(top, "devices", "device"):
         dname = sec.req("name", s.string)
         protocol = sec.req("protocol", s.string)
-        poll = sec.req("poll_interval_s", s.number(positive=True))
-        timeout = sec.req("timeout_s", s.number(positive=True))
+        poll = sec.opt("poll_interval_s", s.number(positive=True), DEFAULT_POLL_INTERVAL_S)
+        timeout = sec.opt("timeout_s", s.number(positive=True), None)
+        if timeout is None:
+            timeout = default_timeout(poll if poll is not MISSING else DEFAULT_POLL_INTERVAL_S)
         options: Any = MISSING
         if dname is not MISSING and protocol is not MISSING:
             protocols.setdefault(dname, protocol)
@@ -90,7 +99,10 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
     # (loop, result unit id, result_address) of every loop that has both
     blocks: list[tuple[str, int, int]] = []
     names: set[str] = set()
-    for _i, name, sec in s.entries(top, "loops", "loop"):
+    sections: dict[str, Section] = {}  # loop name -> its section, for later problems
+    tables = tag_tables(top)  # loops_csv: loops from tag lists, after those of `loops`
+    listed = s.entries(top, "loops", "loop") if top.has("loops") or not tables else ()
+    for _i, name, sec in itertools.chain(listed, tag_entries(problems, tables, protocols)):
         loop = _parse_loop(sec, devices, protocols, server.unit_id)
         sec.done()
         address = sec.raw.get("result_address")
@@ -103,14 +115,18 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
                 sec.error("name", f"duplicate loop name {name!r}")
                 continue
             names.add(name)
+            sections[name] = sec
         if loop is not None:
             loops.append(loop)
     top.done()
-    _check_result_blocks(problems, blocks, server.unit_id)
+    loops, assigned, full = assign_result_addresses(loops, blocks)
+    for name, message in full.items():
+        sections[name].error("result_address", message)
+    _check_result_blocks(problems, sections, blocks, server.unit_id)
     if not problems.ok:
         raise ConfigError(problems.lines)
     config = Config(source, tuple(d for d in devices.values() if d is not None),
-                    tuple(loops), gateway, metrics, server)
+                    tuple(loops), gateway, metrics, server, assigned=tuple(assigned))
     check_config(problems, config)  # what run would refuse or crash on (checks.py)
     if not problems.ok:
         raise ConfigError(problems.lines)
@@ -203,8 +219,8 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     delay = sec.opt("delay_s", s.number(non_negative=True), 0.0)
     window = sec.opt("window_s", s.number(positive=True), 7200.0)
     op_range = sec.opt("op_range", s.number_pair, (0.0, 100.0))
-    result_address = sec.req("result_address",
-                             s.integer(0, 65536 - RESULT_BLOCK_SIZE))
+    result_address = sec.opt("result_address", s.integer(0, 65536 - RESULT_BLOCK_SIZE),
+                             None)  # None: assigned once every loop is read
     result_unit_id = sec.opt("result_unit_id", s.integer(1, MAX_RESULT_UNIT_ID), default_unit)
     if device is not None and window is not MISSING \
             and window / device.poll_interval_s < MIN_WINDOW_SAMPLES:
@@ -233,13 +249,16 @@ def _kp(value: Any) -> float | None:
     return out
 
 
-def _check_result_blocks(problems: Problems, blocks: list[tuple[str, int, int]],
-                         default_unit: Any) -> None:
+def _check_result_blocks(problems: Problems, sections: Mapping[str, Section],
+                         blocks: list[tuple[str, int, int]], default_unit: Any) -> None:
     """Within each result unit id, a loop's block must not overlap another's (reported
     once per pair of neighbours in address order); the same address on two unit ids is
     fine."""
     n = RESULT_BLOCK_SIZE - 1
     for name, unit, a, other, oa in overlapping_blocks(blocks):
         where = "" if unit == default_unit else f" on result unit id {unit}"
-        problems.add(f"loop {name}", "result_address",
-                     f"block {a}..{a + n} overlaps loop {other} ({oa}..{oa + n}){where}")
+        message = f"block {a}..{a + n} overlaps loop {other} ({oa}..{oa + n}){where}"
+        if name in sections:
+            sections[name].error("result_address", message)
+        else:
+            problems.add(f"loop {name}", "result_address", message)

@@ -11,6 +11,8 @@ import dataclasses
 from typing import Any
 
 __all__ = [
+    "DEFAULT_POLL_INTERVAL_S",
+    "DEFAULT_TIMEOUT_S",
     "MIN_WINDOW_SAMPLES",
     "PROCESSES",
     "WORD_ORDERS",
@@ -21,11 +23,20 @@ __all__ = [
     "MetricsSettings",
     "PointConfig",
     "ResultServerSettings",
+    "default_timeout",
 ]
 
 MIN_WINDOW_SAMPLES = 16
+DEFAULT_POLL_INTERVAL_S = 1.0  # a device's poll_interval_s when the config leaves it out
+DEFAULT_TIMEOUT_S = 1.0  # ... and its timeout_s, never more than its poll interval
 PROCESSES = ("self-regulating", "integrating")
 WORD_ORDERS = ("big", "little")
+
+
+def default_timeout(poll_interval_s: float) -> float:
+    """A device's ``timeout_s`` when the config leaves it out: 1 s, or the poll interval
+    if that is shorter (a poll must end before the next one is due)."""
+    return min(DEFAULT_TIMEOUT_S, poll_interval_s)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,6 +120,8 @@ class Config:
     gateway: GatewaySettings = GatewaySettings()
     metrics: MetricsSettings = MetricsSettings()
     modbus_server: ResultServerSettings = ResultServerSettings()
+    # loops whose result_address the loader assigned (config/addresses.py), in config order
+    assigned: tuple[str, ...] = ()
 
     def device(self, name: str) -> DeviceConfig:
         for dev in self.devices:

@@ -14,7 +14,7 @@ read is NaN with a non-GOOD quality: never a zero.
 from __future__ import annotations
 
 import dataclasses
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from ..core.points import PointSpec, Quality
 from ..errors import DeviceError
 
-__all__ = ["PointSpec", "Quality", "ReadResult", "Source"]
+__all__ = ["PointSpec", "PointStatus", "Quality", "ReadResult", "Source"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,3 +55,14 @@ class Source(Protocol):
 
     async def close(self) -> None:
         """Close the connection; never raises."""
+
+
+@runtime_checkable
+class PointStatus(Protocol):
+    """A source that can say, per point, what the device said of it at its last read
+    (``stiction-gateway probe`` prints it); optional."""
+
+    def point_status(self) -> list[str]:
+        """One text per point, in point order: '' when there is nothing to say, else the
+        protocol's word for the failure (e.g. ``holding 100+4: exception code 2``,
+        ``BadNodeIdUnknown``)."""

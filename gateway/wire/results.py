@@ -59,30 +59,47 @@ VERDICT_CODES: dict[str, int] = {
 
 @dataclasses.dataclass(frozen=True)
 class Field:
-    """One value of a block: its name, first register (offset in the block) and type."""
+    """One value of a block: its name, first register (offset in the block) and type; the
+    ``unit`` and ``meaning`` SCADA engineers see (``stiction-gateway result-map``,
+    docs/modbus-map.md); engineering value = register value * ``scale``."""
 
     name: str
     offset: int
     type: str  # a wire.codec type: uint16, uint32, float32, ...
+    unit: str = ""
+    meaning: str = ""
+    scale: float = 1.0
 
     @property
     def width(self) -> int:
         return TYPES[self.type][0]
 
 
+_PERCENT = "% of valve span"
+_CODES = ", ".join(f"{code} {name.replace('_', ' ') if name != 'none' else 'no result yet'}"
+                   for name, code in VERDICT_CODES.items())
+
 LAYOUT: tuple[Field, ...] = (
-    Field("code", 0, "uint16"),  # VERDICT_CODES
-    Field("seq", 1, "uint16"),  # assessment sequence number, wraps at 65536
-    Field("stiction_index", 2, "float32"),
-    Field("fd_percent", 4, "float32"),
-    Field("fs_percent", 6, "float32"),
-    Field("period_s", 8, "float32"),
-    Field("jump_percent", 10, "float32"),
-    Field("timestamp", 12, "uint32"),  # Unix seconds of the assessment
-    Field("window_fill", 14, "float32"),  # 0-1
-    Field("confidence", 16, "float32"),  # 0-1, confidence of stiction; NaN when not assessed
+    Field("code", 0, "uint16", "code", f"verdict: {_CODES}"),
+    Field("seq", 1, "uint16", "count", "assessment sequence number: +1 on every new "
+          "assessment, wraps 65535 -> 0, never goes back across reloads and restarts (after "
+          "a crash it may jump ahead); if it stops changing, the analysis has stopped"),
+    Field("stiction_index", 2, "float32", "0-1",
+          "stiction index SI (>= 0.6 stiction-like, <= 0.4 not)"),
+    Field("fd_percent", 4, "float32", _PERCENT, "fd, dynamic friction"),
+    Field("fs_percent", 6, "float32", _PERCENT,
+          "fs, static friction; NaN when the loop has no kp in the config"),
+    Field("period_s", 8, "float32", "s", "oscillation period"),
+    Field("jump_percent", 10, "float32", _PERCENT, "valve jump J = fs - fd"),
+    Field("timestamp", 12, "uint32", "Unix s (UTC)", "time of the assessment"),
+    Field("window_fill", 14, "float32", "0-1",
+          "window fill: fraction of the loop's window holding good samples"),
+    Field("confidence", 16, "float32", "0-1",
+          "confidence of stiction, the analysis's weighted vote of its tests (>= 0.7 is a "
+          "stiction verdict, <= 0.3 no_stiction); NaN when no test ran (bad data, valve "
+          "not responding)"),
 )
-"""Registers +18..+19 are reserved (read as 0)."""
+"""Registers +18..+19 are reserved (read as 0). Values not estimated are float32 NaN."""
 
 
 class LoopResultLike(Protocol):

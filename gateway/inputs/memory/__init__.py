@@ -42,8 +42,12 @@ from ..base import ReadResult
 if TYPE_CHECKING:
     from ...config import DeviceConfig
 
-__all__ = ["MemoryOptions", "MemoryPoint", "MemorySource", "create_input", "memory_device",
+__all__ = ["POINT_ADDRESS_KEY",
+           "MemoryOptions", "MemoryPoint", "MemorySource", "create_input", "memory_device",
            "parse_device", "parse_point"]
+
+POINT_ADDRESS_KEY = "column"
+"""The point key a tag list's op/pv cell fills (a column; gateway.config.tags)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,6 +60,9 @@ class MemoryOptions:
 @dataclasses.dataclass(frozen=True)
 class MemoryPoint:
     column: int
+
+    def __str__(self) -> str:
+        return f"column {self.column}"
 
 
 def _rows(value: Any) -> tuple[tuple[float, ...], ...]:

@@ -11,14 +11,14 @@ from typing import TYPE_CHECKING, Any
 
 from ...core.points import PointSpec
 from .client import ModbusInput
-from .config import ModbusDeviceOptions, ModbusPoint, parse_device, parse_point
+from .config import POINT_ADDRESS_KEY, ModbusDeviceOptions, ModbusPoint, parse_device, parse_point
 from .plan import ReadRequest, plan_requests
 
 if TYPE_CHECKING:
     from ...config import DeviceConfig
 
-__all__ = ["ModbusDeviceOptions", "ModbusInput", "ModbusPoint", "ReadRequest", "create_input",
-           "parse_device", "parse_point", "plan_requests"]
+__all__ = ["POINT_ADDRESS_KEY", "ModbusDeviceOptions", "ModbusInput", "ModbusPoint",
+           "ReadRequest", "create_input", "parse_device", "parse_point", "plan_requests"]
 
 
 def create_input(device: DeviceConfig, points: Sequence[PointSpec], **_: Any) -> ModbusInput:

@@ -53,6 +53,8 @@ class ModbusInput:
         self.requests, first = plan_requests(addrs, options.max_registers_per_request,
                                              options.merge_gap)
         self.image_size = sum(r.count for r in self.requests)
+        self._first = first  # each point's first register in the image
+        self._failed: list[tuple[slice, str]] = []  # failed requests of the last read
         groups: dict[tuple[str, str, str], list[int]] = {}
         for i, a in enumerate(addrs):
             groups.setdefault((a.type, a.word_order, a.byte_order), []).append(i)
@@ -61,6 +63,7 @@ class ModbusInput:
             idx = np.array(members, dtype=np.intp)
             gather = first[idx][:, None] + np.arange(TYPES[typ][0])
             self._groups.append(_Group(idx, gather, typ, word, byte))
+        self.timeout_s = timeout_s
         self._client = AsyncModbusTcpClient(options.host, port=options.port, timeout=timeout_s,
                                             retries=0, reconnect_delay=0)
 
@@ -83,34 +86,42 @@ class ModbusInput:
         failed = np.zeros(self.image_size, dtype=bool)
         errors: list[DeviceError] = []
         unit = self.options.unit_id
+        self._failed = []
         for req in self.requests:
             call = (self._client.read_holding_registers if req.table == "holding"
                     else self._client.read_input_registers)
+            what = f"{req.table} {req.address}+{req.count}"
             try:
                 rsp = await call(req.address, count=req.count, device_id=unit)
             except ConnectionException as exc:
                 raise DeviceError(self.name, "connect", f"not connected: {exc}") from exc
             except (TimeoutError, ModbusIOException) as exc:
-                raise DeviceError(self.name, "timeout", f"no answer: {exc}") from exc
+                raise DeviceError(self.name, "timeout", f"{what} (unit id {unit}): no answer "
+                                  f"within {self.timeout_s:g} s: {exc}") from exc
             except (ModbusException, ValueError, OSError) as exc:
-                raise DeviceError(self.name, "protocol", str(exc)) from exc
+                raise DeviceError(self.name, "protocol", f"{what}: {exc}") from exc
             sl = slice(req.offset, req.offset + req.count)
             if rsp.isError():
                 code = getattr(rsp, "exception_code", None)
-                errors.append(DeviceError(
-                    self.name, "exception",
-                    f"{req.table} {req.address}+{req.count}: exception code {code}"))
-                failed[sl] = True
+                errors.append(DeviceError(self.name, "exception",
+                                          f"{what}: exception code {code}"))
+            elif len(rsp.registers) != req.count:
+                errors.append(DeviceError(self.name, "protocol",
+                                          f"{what}: got {len(rsp.registers)} registers"))
+            else:
+                image[sl] = rsp.registers
                 continue
-            regs = rsp.registers
-            if len(regs) != req.count:
-                errors.append(DeviceError(
-                    self.name, "protocol",
-                    f"{req.table} {req.address}+{req.count}: got {len(regs)} registers"))
-                failed[sl] = True
-                continue
-            image[sl] = regs
+            failed[sl] = True
+            self._failed.append((sl, str(errors[-1]).removeprefix(f"device {self.name}: ")))
         return self._decode(t0, image, failed, tuple(errors))
+
+    def point_status(self) -> list[str]:
+        """Per point, the failed request of the last read that holds it ('' if none)."""
+        out = [""] * len(self.points)
+        for sl, message in self._failed:
+            for i in np.flatnonzero((self._first >= sl.start) & (self._first < sl.stop)):
+                out[int(i)] = message
+        return out
 
     def _decode(self, t0: float, image: NDArray[np.uint16], failed: NDArray[np.bool_],
                 errors: tuple[DeviceError, ...]) -> ReadResult:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 from ...core.points import PointSpec
 from .client import OpcUaInput
 from .config import (
+    POINT_ADDRESS_KEY,
     OpcUaDeviceConfig,
     OpcUaPoint,
     OpcUaSecurity,
@@ -25,8 +26,8 @@ from .config import (
 if TYPE_CHECKING:
     from ...config import DeviceConfig
 
-__all__ = ["OpcUaDeviceConfig", "OpcUaInput", "OpcUaPoint", "OpcUaSecurity", "create_input",
-           "parse_device", "parse_node_id", "parse_point"]
+__all__ = ["POINT_ADDRESS_KEY", "OpcUaDeviceConfig", "OpcUaInput", "OpcUaPoint",
+           "OpcUaSecurity", "create_input", "parse_device", "parse_node_id", "parse_point"]
 
 
 def create_input(device: DeviceConfig, points: Sequence[PointSpec], **_: Any) -> OpcUaInput:

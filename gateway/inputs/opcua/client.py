@@ -27,7 +27,7 @@ from ...core.points import PointSpec
 from ...errors import DeviceError
 from ..base import ReadResult
 from .config import OpcUaDeviceConfig, OpcUaPoint
-from .errors import map_error
+from .errors import map_error, status_name
 from .session import discard, new_client, secure
 from .values import StatusLog, convert
 
@@ -103,6 +103,11 @@ class OpcUaInput:
         values, quality, status = convert(results, self._read_index, len(self.points))
         self._status.update(status)
         return ReadResult(t=t, values=values, quality=quality, requests=len(self._chunks))
+
+    def point_status(self) -> list[str]:
+        """Per point, the StatusCode of its last read when not Good ('' when Good)."""
+        return [status_name(int(c)) if int(c) & 0xC0000000 else ""
+                for c in self._status.status]
 
     async def close(self) -> None:
         """Close the session; never raises."""

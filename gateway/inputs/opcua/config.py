@@ -24,8 +24,21 @@ from cryptography.hazmat.primitives.serialization import Encoding, PublicFormat
 from ...config.schema import MISSING, Section, choice
 from ...wire.certs import application_uri_of, load_certificate_file, load_private_key_file
 
-__all__ = ["MODES", "POLICIES", "OpcUaDeviceConfig", "OpcUaPoint", "OpcUaSecurity",
-           "parse_device", "parse_node_id", "parse_point", "trust_store_files"]
+__all__ = [
+    "MODES",
+    "POINT_ADDRESS_KEY",
+    "POLICIES",
+    "OpcUaDeviceConfig",
+    "OpcUaPoint",
+    "OpcUaSecurity",
+    "parse_device",
+    "parse_node_id",
+    "parse_point",
+    "trust_store_files",
+]
+
+POINT_ADDRESS_KEY = "node"
+"""The point key a tag list's op/pv cell fills (a node id; gateway.config.tags)."""
 
 POLICIES = ("Basic256Sha256", "Aes128_Sha256_RsaOaep", "Aes256_Sha256_RsaPss")
 """Security policies (OPC UA names). The deprecated Basic128Rsa15 and Basic256 are refused."""
@@ -79,6 +92,9 @@ class OpcUaPoint:
     node: str
     scale: float = 1.0
     offset: float = 0.0
+
+    def __str__(self) -> str:
+        return self.node
 
 
 # ------------------------------------------------------------------ converters
