@@ -74,7 +74,6 @@ def main(argv: list[str] | None = None) -> int:
     # the sources report every pymodbus failure as a DeviceError, logged once per outage by
     # the poller; pymodbus' own per-attempt lines would repeat it every retry
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    install_rate_limit()  # no flood of events floods the journal (runtime/logs.py)
     # likewise asyncua: the OPC UA source maps its failures to DeviceError; its own loggers
     # would add hostname warnings and a traceback for every refused certificate
     for name in ("asyncua", "asyncuagds"):
@@ -106,7 +105,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command in onboarding.COMMANDS:
         return onboarding.dispatch(args)
     if args.command == "run":
-        return run(load_config(args.config), args.config)
+        config = load_config(args.config)
+        install_rate_limit()  # no flood of events floods the journal (runtime/logs.py)
+        return run(config, args.config)
     if args.command == "plc-sim":
         import plcsim  # the simulator ships beside the daemon, loaded on demand
 

@@ -499,7 +499,7 @@ def test_the_unit_sizes_its_open_files_limit_from_the_server_limits() -> None:
 def test_log_lines_are_rate_limited_per_cause() -> None:
     """Finding 2: the log grew 71 MB in 40 s. A cause logs at most 20 lines a minute, then
     says how many it dropped; other causes are not affected."""
-    from gateway.runtime.logs import RateLimit  # noqa: PLC0415 - missing on main
+    from gateway.runtime.logs import RateLimit, install_rate_limit  # noqa: PLC0415
 
     now = [0.0]
     limit = RateLimit(clock=lambda: now[0])
@@ -521,6 +521,9 @@ def test_log_lines_are_rate_limited_per_cause() -> None:
     assert len(lines) == 22
     assert lines[20] == "device plc1: down"
     assert lines[21].endswith("[9980 more like this dropped]")
+    other = logging.getLogger("test.hostile.install")  # `run` installs it once per handler
+    other.addHandler(logging.NullHandler())
+    assert len(install_rate_limit(other)) == 1 and install_rate_limit(other) == []
 
 
 @pytest.mark.e2e

@@ -67,6 +67,8 @@ def install_rate_limit(logger: logging.Logger | None = None) -> list[RateLimit]:
     """Give every handler of ``logger`` (default: the root) its own :class:`RateLimit`."""
     limits = []
     for handler in (logger or logging.getLogger()).handlers:
+        if any(isinstance(f, RateLimit) for f in handler.filters):
+            continue  # installed already
         limit = RateLimit()
         handler.addFilter(limit)
         limits.append(limit)
