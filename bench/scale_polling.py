@@ -18,6 +18,7 @@ import asyncio
 import math
 import os
 import statistics
+import struct
 import sys
 import time
 
@@ -98,13 +99,12 @@ async def _plc_capacity(loops: int, repeats: int) -> list[tuple[str, float, str]
 
     regs = len(sim.image)
     n_reads = math.ceil(regs / 125)
-    buf = [0] * 125
+    pdus = [struct.pack(">BHH", 3, k * 125, min(125, regs - k * 125)) for k in range(n_reads)]
     reads = []
     for _ in range(5):
         t0 = time.perf_counter()
-        for k in range(n_reads):
-            sim.server._serve(sim.server.unit_id, 3, 0, k * 125, min(125, regs - k * 125),
-                              buf, None)
+        for pdu in pdus:
+            sim.server.answer(sim.server.unit_id, pdu)
         reads.append((time.perf_counter() - t0) / n_reads)
 
     dev = SimDevice(id=1, simdata=[SimData(0, count=regs, datatype=DataType.REGISTERS)])

@@ -17,6 +17,7 @@ from .config import load_config
 from .config.addresses import describe_assigned
 from .errors import ConfigError, GatewayError
 from .runtime import onboarding
+from .runtime.logs import install_rate_limit
 from .runtime.service import install_stop_signals, run
 
 __all__ = ["build_parser", "main"]
@@ -34,6 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--config", required=True, metavar="FILE", help="gateway YAML config")
     check = sub.add_parser("check-config", help="validate a config file without connecting")
     check.add_argument("file", metavar="FILE")
+    check.add_argument("--bind-check", action="store_true",
+                       help="also try to bind metrics.listen and modbus_server.listen")
     sim = sub.add_parser("plc-sim", help="simulated PLC serving OP/PV over Modbus TCP")
     sim.add_argument("--config", required=True, metavar="FILE", help="plc-sim YAML config")
     sim.add_argument("--write-gateway-config", metavar="FILE",
@@ -89,6 +92,12 @@ def main(argv: list[str] | None = None) -> int:
 def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "check-config":
         cfg = load_config(args.file)
+        if args.bind_check:
+            from .config.checks import bind_check
+
+            problems = bind_check(cfg)
+            if problems:
+                raise ConfigError(problems)
         print(f"{args.file}: ok ({len(cfg.devices)} device(s), {len(cfg.loops)} loop(s))")
         for line in describe_assigned(cfg):
             print(line)
@@ -96,7 +105,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command in onboarding.COMMANDS:
         return onboarding.dispatch(args)
     if args.command == "run":
-        return run(load_config(args.config), args.config)
+        config = load_config(args.config)
+        install_rate_limit()  # no flood of events floods the journal (runtime/logs.py)
+        return run(config, args.config)
     if args.command == "plc-sim":
         import plcsim  # the simulator ships beside the daemon, loaded on demand
 

@@ -16,15 +16,14 @@ from __future__ import annotations
 import itertools
 import os
 from collections.abc import Callable, Mapping
-from pathlib import Path
 from typing import Any, TypeGuard, TypeVar
-
-import yaml
 
 from ..errors import ConfigError
 from ..wire.results import MAX_RESULT_UNIT_ID, RESULT_BLOCK_SIZE, overlapping_blocks
 from . import schema as s
 from .addresses import assign_result_addresses
+from .checks import check_config, identification
+from .limits import read_document
 from .model import (
     DEFAULT_POLL_INTERVAL_S,
     MIN_WINDOW_SAMPLES,
@@ -51,16 +50,7 @@ T = TypeVar("T")
 def load_config(path: str | os.PathLike[str]) -> Config:
     """Read and validate a YAML config file; raise ConfigError listing every problem."""
     source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError([f"{source}: cannot read: {exc.strerror or exc}"]) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        detail = str(exc).replace("\n", " ")
-        raise ConfigError([f"{source}: invalid YAML: {detail}"]) from None
-    return parse_config(data, source)
+    return parse_config(read_document(path), source)  # within limits.py's bounds
 
 
 def parse_config(data: Any, source: str = "<config>") -> Config:
@@ -135,8 +125,12 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
     _check_result_blocks(problems, sections, blocks, server.unit_id)
     if not problems.ok:
         raise ConfigError(problems.lines)
-    return Config(source, tuple(d for d in devices.values() if d is not None), tuple(loops),
-                  gateway, metrics, server, assigned=tuple(assigned))
+    config = Config(source, tuple(d for d in devices.values() if d is not None),
+                    tuple(loops), gateway, metrics, server, assigned=tuple(assigned))
+    check_config(problems, config)  # what run would refuse or crash on (checks.py)
+    if not problems.ok:
+        raise ConfigError(problems.lines)
+    return config
 
 
 def _is_int(value: Any) -> TypeGuard[int]:
@@ -152,12 +146,20 @@ GATEWAY_KEYS: dict[str, Callable[[Any], Any]] = {
     "reconnect_max_s": s.number(positive=True),
     "site": s.label_value,
     "area": s.label_value,
+    "memory_limit_mb": s.number(positive=True),
 }
-METRICS_KEYS: dict[str, Callable[[Any], Any]] = {"listen": s.listen_address}
+METRICS_KEYS: dict[str, Callable[[Any], Any]] = {
+    "listen": s.listen_address,
+    "max_connections": s.integer(1, 10000),
+    "idle_timeout_s": s.number(positive=True),
+}
 SERVER_KEYS: dict[str, Callable[[Any], Any]] = {
     "listen": s.listen_address,
     "unit_id": s.integer(0, 247),
     "word_order": s.choice(WORD_ORDERS),
+    "max_connections": s.integer(1, 10000),
+    "idle_timeout_s": s.number(positive=True),
+    "identification": identification,
 }
 
 

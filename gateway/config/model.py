@@ -51,11 +51,16 @@ class GatewaySettings:
     # the site's Prometheus puts the same labels on every series (external_labels)
     site: str | None = None
     area: str | None = None
+    # MiB the loop windows may take (with the state file's copy); None: half the machine's
+    # memory (or of the service's memory limit), see gateway.config.checks
+    memory_limit_mb: float | None = None
 
 
 @dataclasses.dataclass(frozen=True)
 class MetricsSettings:
     listen: tuple[str, int] = ("127.0.0.1", 9108)
+    max_connections: int = 16  # at once; beyond, the least useful connection is closed
+    idle_timeout_s: float = 30.0  # a connection that sends nothing this long is closed
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,6 +68,11 @@ class ResultServerSettings:
     listen: tuple[str, int] = ("127.0.0.1", 5020)
     unit_id: int = 1
     word_order: str = "big"
+    max_connections: int = 64
+    idle_timeout_s: float = 60.0
+    # what read device identification (FC 43/14) answers: (object name, text) pairs of
+    # gateway.wire.registers.IDENTIFICATION_OBJECTS; empty: FC 43 is refused
+    identification: tuple[tuple[str, str], ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)

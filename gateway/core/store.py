@@ -28,7 +28,8 @@ class LoopResult:
     """One loop's latest assessment with its bookkeeping."""
 
     assessment: Assessment
-    seq: int  # 1, 2, ... per loop (the register wraps at 65536)
+    seq: int  # 1, 2, ... per loop, never backwards across reloads and restarts (the
+    # register wraps at 65536)
     t: float  # wall-clock Unix seconds of the assessment
     window_fill: float  # fraction 0-1 of the window holding good samples
     samples: int  # samples the analysis used
@@ -45,6 +46,9 @@ class ResultStore:
         self.latest_op: NDArray[np.float64] = np.full(n, np.nan)
         self.latest_pv: NDArray[np.float64] = np.full(n, np.nan)
         self.stale = np.zeros(n, dtype=bool)
+        # per loop, a sequence number already published (by an earlier run or config): the
+        # next assessment is numbered above it, so the number never goes backwards
+        self.seq_floor = np.zeros(n, dtype=np.int64)
         self._subscribers: list[Callable[[int], None]] = []
 
     def subscribe(self, fn: Callable[[int], None]) -> None:
@@ -57,7 +61,8 @@ class ResultStore:
     def set_result(self, i: int, assessment: Assessment, *, t: float, window_fill: float,
                    samples: int) -> LoopResult:
         prev = self.results[i]
-        res = LoopResult(assessment, (prev.seq + 1) if prev else 1, t, window_fill, samples)
+        seq = max(prev.seq if prev else 0, int(self.seq_floor[i])) + 1
+        res = LoopResult(assessment, seq, t, window_fill, samples)
         self.results[i] = res
         self._notify(i)
         return res
@@ -66,7 +71,13 @@ class ResultStore:
         """Put back a result as it was (sequence number included), e.g. from the state file
         or the previous config on reload."""
         self.results[i] = result
+        self.seq_floor[i] = max(int(self.seq_floor[i]), result.seq)
         self._notify(i)
+
+    def last_seq(self, i: int) -> int:
+        """The highest sequence number loop ``i`` has published (0: none)."""
+        res = self.results[i]
+        return max(res.seq if res is not None else 0, int(self.seq_floor[i]))
 
     def set_stale(self, rows: NDArray[np.intp], stale: NDArray[np.bool_] | bool) -> None:
         """Set the stale flag of loops ``rows``; subscribers hear of those that changed."""

@@ -30,7 +30,8 @@ __all__ = ["AUTH_RETRY_CAP_S", "STALE_POLLS", "Backoff", "Link", "ProcessClock",
 STALE_POLLS = 3
 """Polls without a fresh sample after which a loop is stale (verdict code 6)."""
 AUTH_RETRY_CAP_S = 60.0
-"""Least cap of the backoff after a refused login or certificate (kind ``auth``)."""
+"""Least cap of the backoff after a refused login or certificate (kind ``auth``): from the
+first refusal on, the next attempt waits between half of it and all of it (30-60 s)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,8 +72,11 @@ class TickGrid:
 class Backoff:
     """Delays for successive reconnect attempts: ``uniform(0, min(cap, base·factor^n))``
     ("full jitter"), so many gateways or devices that lost a PLC at the same moment do not
-    retry in lock-step. ``caps`` gives a kind of failure its own cap (default: a refused
-    login waits up to at least :data:`AUTH_RETRY_CAP_S`). ``reset()`` after a success.
+    retry in lock-step. ``caps`` gives a kind of failure its own delay, from the first such
+    failure on: ``uniform(cap/2, cap)`` (default: a refused login waits 30-60 s, at least
+    :data:`AUTH_RETRY_CAP_S`, so that a wrong password does not lock a plant's account;
+    ramping up from half a second tried 5 logins in the first 10 s). ``reset()`` after a
+    success.
     """
 
     def __init__(self, base: float = 0.5, factor: float = 2.0, cap: float = 30.0,
@@ -95,10 +99,16 @@ class Backoff:
 
     def ceiling(self, kind: str | None = None) -> float:
         """Upper bound of the next delay (after a failure of ``kind``)."""
+        if kind is not None and kind in self.caps:
+            return self.caps[kind]
         return min(self.cap_for(kind), self.base * self.factor ** min(self.attempt, 64))
 
     def next_delay(self, kind: str | None = None) -> float:
-        delay = self._rng.uniform(0.0, self.ceiling(kind))
+        if kind is not None and kind in self.caps:
+            cap = self.caps[kind]
+            delay = self._rng.uniform(cap / 2, cap)
+        else:
+            delay = self._rng.uniform(0.0, self.ceiling(kind))
         self.attempt += 1
         return delay
 

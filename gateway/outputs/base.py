@@ -10,6 +10,7 @@ windows). An output plugin module (registered by one line in
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Awaitable, Callable
 from typing import Protocol
 
 from ..config.model import Config
@@ -17,7 +18,7 @@ from ..core.store import ResultStore
 from ..core.ticks import ProcessClock
 from ..core.windows import LoopGroup
 
-__all__ = ["Binding", "Sink"]
+__all__ = ["Binding", "Sink", "Swap"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -31,8 +32,21 @@ class Binding:
     clock: ProcessClock
 
 
+@dataclasses.dataclass(frozen=True)
+class Swap:
+    """What a sink prepared for a reload (e.g. a server bound on its new address):
+    ``commit()`` puts it in service, ``abort()`` closes it (the reload was refused)."""
+
+    commit: Callable[[], Awaitable[None]]
+    abort: Callable[[], Awaitable[None]]
+
+
 class Sink(Protocol):
-    """One output. ``bind`` may be called before ``start`` and any number of times after."""
+    """One output. ``bind`` may be called before ``start`` and any number of times after.
+
+    A sink with a listener may also define ``async prepare(config) -> Swap | None``: a
+    reload calls it on every sink before it changes anything and refuses the new config if
+    one raises OSError (an address in use), so the running one keeps serving."""
 
     async def start(self) -> None:
         """Open what the output needs (a server, a file); raise OSError if it cannot."""

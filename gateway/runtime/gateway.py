@@ -7,8 +7,10 @@ file is written last), closes the sources and the workers.
 
 :meth:`Gateway.reload` applies a new config while running (SIGHUP): the carry-over is
 :func:`gateway.runtime.reload.build_runtime`; devices that stay keep their poll schedule, and
-every sink is bound to the new runtime. A config that does not validate, or whose runtime
-cannot be built, is refused and the running one kept.
+every sink is bound to the new runtime. The reload is a transaction
+(:mod:`gateway.runtime.reload`): a file that cannot be read or does not validate, a new
+listen address in use or a runtime that cannot be built is refused and the running config
+kept, untouched.
 """
 
 from __future__ import annotations
@@ -25,15 +27,20 @@ from typing import Any
 
 from prometheus_client import CollectorRegistry
 
-from ..config import Config, load_config
+from ..config import Config
 from ..config.plugins import output_plugin
 from ..core.store import ResultStore
-from ..errors import ConfigError
 from ..inputs.base import Source
 from ..outputs.base import Binding, Sink
 from ..outputs.prometheus import GatewayMetrics
 from .poller import Clocks, DevicePoller
-from .reload import build_runtime
+from .reload import (
+    ReloadRefused,
+    build_runtime,
+    prepare_listeners,
+    read_new_config,
+    reload_summary,
+)
 from .scheduler import DEFAULT_ANALYZE, AnalysisScheduler
 
 __all__ = ["Gateway"]
@@ -174,56 +181,60 @@ class Gateway:
         return size
 
     async def reload(self, source: str | os.PathLike[str] | Config) -> bool:
-        """Apply a new config (a path or a parsed Config). False, with the reasons logged,
-        if it does not validate or cannot be built: the running config stays in force."""
+        """Apply a new config (a path or a parsed Config) as a transaction
+        (:mod:`gateway.runtime.reload`): False, with one log line naming the file and the
+        problem and ``stiction_config_reload_failures_total`` counted, if it cannot be read,
+        does not validate, cannot bind a new listener or cannot be built; the running
+        config then stays in force, untouched."""
         async with self._reload_lock:
-            if isinstance(source, Config):
-                config = source
-            else:
-                try:  # parsed in a thread: a big YAML file takes a while, polls go on
-                    config = await asyncio.to_thread(load_config, source)
-                except ConfigError as exc:
-                    log.error("reload refused, keeping the running config: %d problem(s) "
-                              "in %s:\n  %s", len(exc.problems), source,
-                              "\n  ".join(exc.problems))
-                    return False
-            if not await self._apply(config):
+            try:
+                config = (source if isinstance(source, Config)
+                          else await read_new_config(source))
+                await self._apply(config)
+            except ReloadRefused as refused:
+                self.metrics.reload_failures.labels(stage=refused.stage).inc()
+                log.error("reload refused, keeping the running config: %s", refused.line)
+                return False
+            except Exception:  # a bug: still never the end of the daemon
+                self.metrics.reload_failures.labels(stage="build").inc()
+                log.exception("reload of %s failed unexpectedly", source)
                 return False
             self.reloads += 1
             return True
 
-    async def _apply(self, config: Config) -> bool:
+    async def _apply(self, config: Config) -> None:
         old = self.runtime
+        swaps = await prepare_listeners(self.sinks, config)  # nothing changed yet
         if config.gateway.analysis_workers != old.config.gateway.analysis_workers:
             log.warning("reload: gateway.analysis_workers takes effect at the next restart")
         due = await self._polls.stop(old.pollers)
         try:
             new = build_runtime(config, old, wall=self._wall(), metrics=self.metrics,
                                 phase_ref=self._phase_ref, clocks=self.clocks)
-        except Exception:  # e.g. a source that cannot be built: keep the running config
-            log.exception("reload failed, keeping the running config")
+        except Exception as exc:  # e.g. a source that cannot be built: keep the running one
+            for swap in swaps:
+                await swap.abort()
             for p in old.pollers:
                 p.resume()
             self._polls.start(old.pollers, due)
-            return False
+            text = " ".join(str(exc).split())[:200]
+            raise ReloadRefused("build", f"{config.source}: its runtime cannot be built: "
+                                f"{type(exc).__name__}: {text}") from exc
+        for swap in swaps:  # the new listeners take over (the old ones serve until then)
+            try:
+                await swap.commit()
+            except Exception:  # bound already: should not happen
+                log.exception("reload: a new listener could not take over")
         await _close_unused(old.sources.values(), new.sources.values())
         self.runtime = new
-        binding = new.binding()
-        for sink in self.sinks.values():
-            await sink.bind(binding)
+        await _bind_all(self.sinks, new.binding())
         g = config.gateway
         self.scheduler.groups, self.scheduler.store = list(new.groups), new.store
         self.scheduler.interval_wall_s = g.analysis_interval_s / g.time_scale
         # devices that stay keep their schedule (and their connection if their points are
         # unchanged); new devices start now
         self._polls.start(new.pollers, {n: d for n, d in due.items() if n in new.sources})
-        old_loops, new_loops = set(old.store.index), set(new.store.index)
-        kept = sum(1 for grp in new.groups for lc in grp.configs
-                   if lc.name in old_loops and grp.bank.count > 0)
-        log.info("reloaded %s: %d devices, %d loops (%d added, %d removed, %d windows kept)",
-                 config.source, len(config.devices), len(config.loops),
-                 len(new_loops - old_loops), len(old_loops - new_loops), kept)
-        return True
+        log.info("reloaded %s", reload_summary(old, new))
 
     # ------------------------------------------------------------------ health
 
@@ -247,6 +258,15 @@ def create_sinks(names: Sequence[str], binding: Binding, **options: Any) -> dict
             raise ValueError(f"unknown output {name!r}")
         sinks[name] = plugin.create_sink(binding, **options)
     return sinks
+
+
+async def _bind_all(sinks: dict[str, Sink], binding: Binding) -> None:
+    """Bind every sink to a reloaded runtime; one that fails is logged, the others bound."""
+    for name, sink in sinks.items():
+        try:
+            await sink.bind(binding)
+        except Exception:  # an output that fails must not end the daemon
+            log.exception("reload: output %s could not take the new config", name)
 
 
 async def _close_unused(old: Iterable[Source], new: Iterable[Source]) -> None:

@@ -1,4 +1,17 @@
-"""Everything built from one config, and the carry-over from the previous one on reload.
+"""Everything built from one config, the carry-over from the previous one on reload, and
+the steps of a reload that may refuse it.
+
+A reload (:meth:`gateway.runtime.gateway.Gateway.reload`) is a transaction: it changes
+nothing until every step that can fail has passed, in this order -
+
+1. :func:`read_new_config`: read and decode the file within the limits of
+   :mod:`gateway.config.limits`, parse and validate it (in a thread, so polls go on);
+2. :func:`prepare_listeners`: every output whose listen address moved binds its new one;
+3. :func:`build_runtime` (below; the pollers are stopped first, to copy the windows);
+
+then the new listeners take over and the sinks are bound. Any failure raises
+:class:`ReloadRefused`: one log line naming the file and the problem, one count in
+``stiction_config_reload_failures_total{stage}``, and the running config untouched.
 
 :func:`build_runtime` is a plain function (no sockets, no tasks): from a config (and, on a
 reload, the old :class:`Runtime`, whose pollers have stopped) it builds the result store,
@@ -15,26 +28,100 @@ one source per device, the loop groups (windows) and one poller per device:
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
-from collections.abc import Callable, Sequence
+import os
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
+from ..config import parse_config
+from ..config.limits import read_document
 from ..config.model import Config, DeviceConfig, LoopConfig
 from ..config.plugins import input_plugin
 from ..core.points import PointSpec
 from ..core.store import ResultStore
 from ..core.ticks import Backoff, ProcessClock, TickGrid
 from ..core.windows import LoopGroup, WindowBank, load_columns, loop_signature, result_signature
+from ..errors import ConfigError
 from ..inputs.base import Source
-from ..outputs.base import Binding
+from ..outputs.base import Binding, Sink, Swap
 from ..outputs.prometheus import GatewayMetrics
 from .poller import BACKOFF_BASE_S, Clocks, DevicePoller
 
-__all__ = ["Runtime", "build_runtime", "device_points"]
+__all__ = ["LISTEN_SECTIONS", "MAX_PROBLEMS_LOGGED", "ReloadRefused", "Runtime",
+           "build_runtime", "device_points", "prepare_listeners", "read_new_config",
+           "reload_summary"]
 
 SourceFactory = Callable[[DeviceConfig, list[PointSpec], float], Source]
+LISTEN_SECTIONS = {"modbus_server": "modbus_server", "prometheus": "metrics"}
+"""Output name -> the config section whose ``listen`` it binds."""
+MAX_PROBLEMS_LOGGED = 10
+
+
+class ReloadRefused(Exception):
+    """A reload that did not happen: ``stage`` (read, validate, listen, build) and one line
+    naming the file and the problem(s)."""
+
+    def __init__(self, stage: str, line: str) -> None:
+        super().__init__(line)
+        self.stage = stage
+        self.line = line
+
+
+def _problems_line(problems: Sequence[str]) -> str:
+    shown = "; ".join(problems[:MAX_PROBLEMS_LOGGED])
+    more = len(problems) - MAX_PROBLEMS_LOGGED
+    tail = f"; and {more} more (stiction-gateway check-config lists them)" if more > 0 else ""
+    return f"{len(problems)} problem(s): {shown}{tail}"
+
+
+def _unexpected(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text[:200]}"
+
+
+async def read_new_config(path: str | os.PathLike[str]) -> Config:
+    """Steps read and validate of a reload (in a thread); ReloadRefused on any failure,
+    even an unexpected one (a reload must never end the daemon)."""
+    source = str(path)
+    try:
+        document = await asyncio.to_thread(read_document, path)
+    except ConfigError as exc:
+        raise ReloadRefused("read", _problems_line(exc.problems)) from None
+    except Exception as exc:
+        raise ReloadRefused("read", f"{source}: cannot be read: {_unexpected(exc)}") from None
+    try:
+        return await asyncio.to_thread(parse_config, document, source)
+    except ConfigError as exc:
+        raise ReloadRefused("validate", _problems_line(exc.problems)) from None
+    except Exception as exc:
+        raise ReloadRefused("validate", f"{source}: cannot be validated: "
+                            f"{_unexpected(exc)}") from None
+
+
+async def prepare_listeners(sinks: Mapping[str, Sink], config: Config) -> list[Swap]:
+    """Step listen of a reload: every sink whose address moved binds its new one (not yet
+    serving). On failure what was bound is closed again and ReloadRefused raised."""
+    swaps: list[Swap] = []
+    for name, sink in sinks.items():
+        prepare = getattr(sink, "prepare", None)
+        if prepare is None:
+            continue
+        try:
+            swap = await prepare(config)
+        except OSError as exc:
+            for s in swaps:
+                await s.abort()
+            section = LISTEN_SECTIONS.get(name, name)
+            host, port = getattr(config, section).listen
+            reason = os.strerror(exc.errno) if exc.errno else str(exc)
+            raise ReloadRefused("listen", f"{config.source}: {section}: key 'listen': cannot "
+                                f"listen on {host}:{port}: {reason}") from None
+        if swap is not None:
+            swaps.append(swap)
+    return swaps
 
 
 @dataclasses.dataclass
@@ -155,6 +242,7 @@ def _carry_results(old: Runtime, new: Runtime) -> None:
         j = old.store.index.get(name)
         if j is None:
             continue
+        new.store.seq_floor[i] = old.store.last_seq(j)  # a changed loop numbers on
         lc_new, lc_old = new.config.loops[i], old.config.loops[j]
         if result_signature(new.config, lc_new) != result_signature(old.config, lc_old):
             continue
@@ -164,3 +252,14 @@ def _carry_results(old: Runtime, new: Runtime) -> None:
         new.store.latest_op[i] = old.store.latest_op[j]
         new.store.latest_pv[i] = old.store.latest_pv[j]
         new.store.stale[i] = old.store.stale[j]
+
+
+def reload_summary(old: Runtime, new: Runtime) -> str:
+    """``FILE: N devices, M loops (a added, r removed, k windows kept)`` for the log."""
+    config = new.config
+    old_loops, new_loops = set(old.store.index), set(new.store.index)
+    kept = sum(1 for grp in new.groups for lc in grp.configs
+               if lc.name in old_loops and grp.bank.count > 0)
+    return (f"{config.source}: {len(config.devices)} devices, {len(config.loops)} loops "
+            f"({len(new_loops - old_loops)} added, {len(old_loops - new_loops)} removed, "
+            f"{kept} windows kept)")

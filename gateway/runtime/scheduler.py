@@ -9,26 +9,32 @@ each batch runs :func:`gateway.core.jobs.analyze_batch` in a ``ProcessPoolExecut
 which bounds the memory a round holds. A round that is still running when the next is due
 makes that one wait (no pile-up). Workers run at a lower CPU priority (``nice`` +10 by
 default), so on a busy box the polling event loop wins a contested core and analysis only
-takes what is left.
+takes what is left, and they die with the gateway however it ends (:func:`die_with_parent`).
+Each verdict change of a loop is logged once, with its reason.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import ctypes
 import logging
 import multiprocessing
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 
+from stiction import Assessment
+
 from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolve
-from ..core.store import ResultStore
+from ..core.store import LoopResult, ResultStore
 from ..core.windows import LoopGroup
 
-__all__ = ["DEFAULT_ANALYZE", "WORKER_NICE", "AnalysisScheduler"]
+__all__ = ["DEFAULT_ANALYZE", "WORKER_NICE", "AnalysisScheduler", "die_with_parent",
+           "log_verdict_change"]
 
 SINGLE_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 """Set to 1 for the analysis workers unless already set (see
@@ -40,15 +46,43 @@ WORKER_NICE = 10
 """Niceness added to each analysis worker: polling must keep its schedule under load."""
 
 
-def _init_worker(increment: int) -> None:
-    """Worker initializer: ignore SIGINT and lower this process's CPU priority (never fails
-    the worker). A Ctrl-C reaches every process of the terminal's group; the gateway handles
-    it and stops the pool, so the workers must not die of it first (each printed a
-    KeyboardInterrupt traceback after "demo stopped")."""
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _init_worker(increment: int, parent: int | None = None) -> None:
+    """Worker initializer: die with the gateway, ignore SIGINT and lower this process's CPU
+    priority (never fails the worker). A Ctrl-C reaches every process of the terminal's
+    group; the gateway handles it and stops the pool, so the workers must not die of it
+    first (each printed a KeyboardInterrupt traceback after "demo stopped")."""
+    if parent is not None:
+        die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if increment > 0:
         with contextlib.suppress(OSError, AttributeError):
             os.nice(increment)
+
+
+def die_with_parent(parent: int) -> None:
+    """End this process when process ``parent`` ends, however it ends (SIGKILL, a crash):
+    Linux's parent-death signal, else a thread that watches for the parent to go. Without
+    it a killed gateway left its workers (and multiprocessing's resource tracker, which
+    waits for them) running under PID 1."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0:
+            if os.getppid() != parent:  # it died before we asked
+                os._exit(1)
+            return
+    except (OSError, AttributeError):
+        pass
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True,
+                     name="watch parent").start()
+
+
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    os._exit(1)
 
 
 def _warm(path: str) -> int:
@@ -92,7 +126,8 @@ class AnalysisScheduler:
         for var in SINGLE_THREAD_ENV:
             os.environ.setdefault(var, "1")
         self._pool = ProcessPoolExecutor(self.workers, mp_context=ctx,
-                                         initializer=_init_worker, initargs=(self.nice,))
+                                         initializer=_init_worker,
+                                         initargs=(self.nice, os.getpid()))
         loop = asyncio.get_running_loop()
         await asyncio.gather(*(loop.run_in_executor(self._pool, _warm, self.analyze)
                                for _ in range(self.workers)))
@@ -137,7 +172,9 @@ class AnalysisScheduler:
                 sem.release()
             t = now()
             for index, assessment, fill, samples, dur in results:
+                before = store.results[index]
                 store.set_result(index, assessment, t=t, window_fill=fill, samples=samples)
+                log_verdict_change(store.loops[index], before, assessment)
                 if self.on_duration is not None:
                     self.on_duration(dur)
             done += len(results)
@@ -153,3 +190,14 @@ class AnalysisScheduler:
         self.last_round_s = time.perf_counter() - t0
         log.debug("analysis round %d: %d loops in %.2f s", self.rounds, done, self.last_round_s)
         return done
+
+
+def log_verdict_change(loop: str, before: LoopResult | None, after: Assessment) -> None:
+    """One INFO line when a loop's verdict changes (the first assessment too), with the
+    reason: the journal tells each loop's story."""
+    was = str(before.assessment.verdict) if before is not None else "none"
+    if was == str(after.verdict):
+        return
+    reason = " ".join(after.reason.split())
+    log.info("loop %s: verdict %s (was %s): %s", loop, after.verdict, was,
+             reason if len(reason) <= 200 else reason[:197] + "...")

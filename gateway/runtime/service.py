@@ -11,16 +11,18 @@ import asyncio
 import contextlib
 import logging
 import os
+import resource
 import signal
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from ..config import Config
+from ..config.checks import fds_needed
 from .gateway import Gateway
 from .sdnotify import Notifier, watchdog_interval
 
-__all__ = ["Watchdog", "install_stop_signals", "run", "serve"]
+__all__ = ["Watchdog", "install_stop_signals", "raise_fd_limit", "run", "serve"]
 
 log = logging.getLogger("gateway.app")
 
@@ -92,7 +94,8 @@ async def serve(config: Config, stop: asyncio.Event, *, reload: asyncio.Event | 
                     reload.clear()
                     notifier.reloading()
                     path = config_path if config_path is not None else config.source
-                    await gw.reload(path)
+                    if await gw.reload(path):
+                        raise_fd_limit(gw.config)  # e.g. more devices
                     notifier.ready(gw.status_text())
                 elif not stop.is_set():
                     notifier.status(gw.status_text())
@@ -113,9 +116,26 @@ def install_stop_signals(stop: asyncio.Event) -> None:
         loop.add_signal_handler(sig, stop.set)
 
 
+def raise_fd_limit(config: Config) -> int:
+    """Raise the soft limit of open files to what ``config`` may need (at most the hard
+    limit, ``LimitNOFILE`` of the unit: check-config refuses a config that needs more);
+    returns the soft limit now in force."""
+    need = fds_needed(config)
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft == resource.RLIM_INFINITY or soft >= need:
+        return int(soft)
+    new = need if hard == resource.RLIM_INFINITY else min(need, hard)
+    with contextlib.suppress(ValueError, OSError):
+        resource.setrlimit(resource.RLIMIT_NOFILE, (new, hard))
+        log.info("open files limit raised from %d to %d", soft, new)
+        return new
+    return int(soft)
+
+
 def run(config: Config, config_path: str | os.PathLike[str] | None = None) -> int:
     """``stiction-gateway run``: serve until SIGTERM/SIGINT, reload on SIGHUP, keep the
     state file; returns the exit status."""
+    raise_fd_limit(config)
 
     async def main() -> None:
         stop = asyncio.Event()

@@ -1,32 +1,102 @@
-"""A read-only Modbus TCP server over numpy register images (pymodbus 3.16 SimDevice API).
+"""A read-only Modbus TCP server over numpy register images.
 
-:class:`RegisterServer` serves one uint16 image per table through a ``SimDevice`` action
-hook: each read copies just the requested slice of the image into pymodbus' registers, so
-updating the image is a numpy assignment and never goes through pymodbus. It also counts the
-requests it served, which the tests use to prove that the gateway coalesces its reads. The
+:class:`RegisterServer` answers function codes 3 and 4 (read holding / input registers)
+from one uint16 image per table and unit id; updating an image is a numpy assignment. The
 gateway's result server (:mod:`gateway.outputs.modbus_server`) and the simulated PLC
-(:mod:`plcsim`) both serve through it.
+(:mod:`plcsim`) both serve through it. It is an asyncio protocol on a
+:class:`~gateway.wire.listener.Listener` (connection limit, idle timeout, garbage closes the
+connection), and answers as the Modbus application protocol (V1.1b3) says:
 
-It is read-only: every write (function codes 5, 6, 15, 16, 22, 23) and every
-coil/discrete-input read is answered with exception 1 (illegal function).
+* an exception response carries the request's function code | 0x80;
+* exception 1 (illegal function): every function but 3, 4 and 43/14 - writes (5, 6, 15,
+  16, 22, 23, counted in ``refused_writes``), bit reads, diagnostics (8), report server id
+  (17) - and 43/14 (read device identification) when no identification is configured;
+* exception 3 (illegal data value): a count outside 1..125 or a request of the wrong length;
+* exception 2 (illegal data address): registers beyond the image;
+* exception 0x0A (gateway path unavailable): a unit id not served.
+
+The MBAP header is checked: a protocol id other than 0 or a length outside 2..254 closes the
+connection. Identification (43/14) answers exactly the objects given, nothing else.
 """
 
 from __future__ import annotations
 
-import logging
+import struct
 from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import NDArray
-from pymodbus.constants import ExcCodes
-from pymodbus.server import ModbusTcpServer
-from pymodbus.simulator import DataType, SimData, SimDevice
 
-__all__ = ["RegisterServer"]
+from .listener import REQUESTS_PER_TURN, Conn, Listener, ListenerStats
 
-log = logging.getLogger("gateway.result_server")
+__all__ = ["DEFAULT_IDLE_TIMEOUT_S", "DEFAULT_MAX_CONNECTIONS", "EXC_GATEWAY_PATH",
+           "EXC_ILLEGAL_ADDRESS", "EXC_ILLEGAL_FUNCTION", "EXC_ILLEGAL_VALUE",
+           "IDENTIFICATION_OBJECTS", "RegisterServer", "answer_identification"]
 
 READ_CODES = {3: "holding", 4: "input"}
+WRITE_CODES = frozenset({5, 6, 15, 16, 22, 23})
+MAX_READ = 125
+EXC_ILLEGAL_FUNCTION, EXC_ILLEGAL_ADDRESS, EXC_ILLEGAL_VALUE = 1, 2, 3
+EXC_GATEWAY_PATH = 0x0A
+DEFAULT_MAX_CONNECTIONS = 64
+DEFAULT_IDLE_TIMEOUT_S = 60.0
+IDENTIFICATION_OBJECTS = ("vendor_name", "product_code", "revision", "vendor_url",
+                          "product_name", "model_name", "application_name")
+"""Object ids 0..6 of read device identification (0-2 basic, 3-6 regular)."""
+_MBAP = struct.Struct(">HHHB")
+
+
+def _exception(fc: int, code: int) -> bytes:
+    return bytes(((fc | 0x80) & 0xFF, code))
+
+
+def answer_identification(pdu: bytes, objects: Mapping[int, bytes]) -> bytes:
+    """The answer to 43/14 (read device identification) from ``objects`` (object id ->
+    value), stream access (codes 1-3) or one object (code 4)."""
+    if len(pdu) != 4:
+        return _exception(0x2B, EXC_ILLEGAL_VALUE)
+    code, first = pdu[2], pdu[3]
+    regular = any(k >= 3 for k in objects)
+    if code == 4:
+        if first not in objects:
+            return _exception(0x2B, EXC_ILLEGAL_ADDRESS)
+        ids = [first]
+    elif code in (1, 2, 3):
+        top = 2 if code == 1 else 6
+        ids = [k for k in sorted(objects) if k <= top]
+        ids = [k for k in ids if k >= first] or ids  # an unknown start restarts at 0
+    else:
+        return _exception(0x2B, EXC_ILLEGAL_VALUE)
+    body = b"".join(bytes((k, len(objects[k]))) + objects[k] for k in ids)
+    conformity = 0x82 if regular else 0x81
+    return bytes((0x2B, 0x0E, code, conformity, 0, 0, len(ids))) + body
+
+
+class _ModbusConn(Conn):
+    """One client connection: MBAP frames in, answers out, in order."""
+
+    def handle(self) -> None:
+        server: RegisterServer = self.listener.owner
+        buf = self.buffer
+        answered = 0
+        while len(buf) >= 7 and not self.closed:
+            if answered == REQUESTS_PER_TURN:
+                self.later()
+                return
+            answered += 1
+            tid, protocol, length, unit = _MBAP.unpack_from(buf)
+            if protocol != 0 or not 2 <= length <= 254:
+                self.drop("protocol")
+                return
+            end = 6 + length
+            if len(buf) < end:
+                break
+            self.begin()
+            pdu = bytes(buf[7:end])
+            del buf[:end]
+            reply = server.answer(unit, pdu)
+            self.write(_MBAP.pack(tid, 0, len(reply) + 1, unit) + reply)
+            self.served()
 
 
 class RegisterServer:
@@ -35,75 +105,89 @@ class RegisterServer:
     ``units`` maps each served unit id to its images by table (``{"holding": img,
     "input": img}``; one array may serve both tables); the one-unit form
     ``RegisterServer(images, unit_id=...)`` is ``units={unit_id: images}``. ``self.units``
-    may be replaced (or its images swapped) while serving, but only for the unit ids given
-    at construction: pymodbus fixes its devices when the server is built. Unit id 0 is the
-    catch-all: requests for a unit id without a device go to it, so ``unit_id=0`` answers
-    every id; any unit id not (or no longer) in ``self.units`` gets exception 0x0A (gateway
-    path unavailable). Writes are refused with exception 1 (illegal function) and counted
-    in ``refused_writes``."""
+    may be replaced (or its images swapped) at any time. Unit id 0 is the catch-all: a
+    request for a unit id not in ``units`` is answered from unit 0's images if there are
+    any, else with exception 0x0A. ``identification`` (object name -> text, see
+    :data:`IDENTIFICATION_OBJECTS`) is what 43/14 answers; without it 43 is refused.
+    ``requests`` counts the reads answered from an image, ``refused_writes`` the writes;
+    ``stats`` (shared by successive servers of one output) the connections."""
 
     def __init__(self, images: dict[str, NDArray[np.uint16]] | None = None, *, host: str,
                  port: int, unit_id: int = 1, capacity: int | None = None,
-                 units: Mapping[int, dict[str, NDArray[np.uint16]]] | None = None) -> None:
+                 units: Mapping[int, dict[str, NDArray[np.uint16]]] | None = None,
+                 max_connections: int = DEFAULT_MAX_CONNECTIONS,
+                 idle_timeout_s: float = DEFAULT_IDLE_TIMEOUT_S,
+                 identification: Mapping[str, str] | None = None,
+                 stats: ListenerStats | None = None) -> None:
+        del capacity  # accepted for compatibility: images may grow up to 65,536 registers
         if units is None:
             if images is None:
                 raise TypeError("RegisterServer needs images or units")
             units = {unit_id: images}
         self.units: dict[int, dict[str, NDArray[np.uint16]]] = dict(units)
         self.unit_id = unit_id if images is not None else min(self.units)
-        self.requests = 0  # read requests answered from the image
+        self.requests = 0
         self.refused_writes = 0
-        self.host, self.port = host, port
-        # the address range pymodbus accepts; images may be swapped for larger ones up to it
-        size = capacity or max(len(img) for imgs in self.units.values()
-                               for img in imgs.values())
-        self.unit_ids = frozenset(self.units) | {0}  # the devices pymodbus knows
-        devices = [self._device(unit, size, self._action_for(unit))
-                   for unit in sorted(self.unit_ids)]
-        self._server = ModbusTcpServer(devices, address=(host, port))
+        self.identification: dict[int, bytes] = {}
+        self.set_identification(identification or {})
+        self.listener = Listener("modbus", _ModbusConn, host=host, port=port, owner=self,
+                                 max_connections=max_connections,
+                                 idle_timeout_s=idle_timeout_s, stats=stats)
 
     @property
     def images(self) -> dict[str, NDArray[np.uint16]]:
         """The images of the unit id given at construction (the one-unit form)."""
         return self.units[self.unit_id]
 
-    @staticmethod
-    def _device(unit: int, size: int, action: object) -> SimDevice:
-        def block() -> list[SimData]:
-            return [SimData(0, count=size, datatype=DataType.REGISTERS)]
+    @property
+    def port(self) -> int:
+        return self.listener.port
 
-        bits = [SimData(0, count=16, values=False, datatype=DataType.BITS)]
-        return SimDevice(id=unit, simdata=(bits, list(bits), block(), block()),
-                         action=action)  # type: ignore[arg-type]
+    def set_identification(self, identification: Mapping[str, str]) -> None:
+        """What 43/14 answers from now on (object name -> text); empty: refused."""
+        self.identification = _objects(identification)
 
-    def _action_for(self, unit: int) -> object:
-        async def action(function_code: int, start: int, address: int, count: int,  # noqa: PLR0917 (pymodbus SimAction)
-                         registers: list[int], values: object) -> ExcCodes | None:
-            return self._serve(unit, function_code, start, address, count, registers, values)
-
-        return action
-
-    def _serve(self, unit: int, function_code: int, start: int, address: int,  # noqa: PLR0917
-               count: int, registers: list[int], values: object) -> ExcCodes | None:
+    def answer(self, unit: int, pdu: bytes) -> bytes:
+        """The response PDU to request ``pdu`` for ``unit``."""
+        fc = pdu[0] if pdu else 0
         images = self.units.get(unit)
-        if images is None:  # a unit id nobody serves (any more)
-            return ExcCodes.GATEWAY_PATH_UNAVIABLE
-        table = READ_CODES.get(function_code)
-        if values is not None or table is None:  # any write, or a bit read
-            self.refused_writes += values is not None
-            return ExcCodes.ILLEGAL_FUNCTION
+        if images is None:
+            images = self.units.get(0)
+            if images is None:
+                return _exception(fc, EXC_GATEWAY_PATH)
+        table = READ_CODES.get(fc)
+        if table is None:
+            if fc in WRITE_CODES:
+                self.refused_writes += 1
+            elif fc == 0x2B and self.identification and len(pdu) >= 2 and pdu[1] == 0x0E:
+                return answer_identification(pdu, self.identification)
+            return _exception(fc, EXC_ILLEGAL_FUNCTION)
+        if len(pdu) != 5:
+            return _exception(fc, EXC_ILLEGAL_VALUE)
+        address, count = struct.unpack_from(">HH", pdu, 1)
+        if not 1 <= count <= MAX_READ:
+            return _exception(fc, EXC_ILLEGAL_VALUE)
         self.requests += 1
         img = images.get(table)
         if img is None or address + count > len(img):
-            return ExcCodes.ILLEGAL_ADDRESS
-        off = address - start
-        registers[off:off + count] = img[address:address + count].tolist()
-        return None
+            return _exception(fc, EXC_ILLEGAL_ADDRESS)
+        return bytes((fc, 2 * count)) + img[address:address + count].astype(">u2").tobytes()
+
+    async def open(self) -> None:
+        """Bind the address without serving yet (OSError if it is in use)."""
+        await self.listener.open()
 
     async def start(self) -> None:
-        await self._server.serve_forever(background=True)
-        sock = self._server.transport.sockets[0]  # type: ignore[attr-defined]
-        self.port = sock.getsockname()[1]
+        await self.listener.start()
 
     async def stop(self) -> None:
-        await self._server.shutdown()  # type: ignore[no-untyped-call]
+        await self.listener.stop()
+
+
+def _objects(identification: Mapping[str, str]) -> dict[int, bytes]:
+    out = {}
+    for k, name in enumerate(IDENTIFICATION_OBJECTS):
+        text = identification.get(name)
+        if text:
+            out[k] = text.encode("utf-8")[:240]
+    return out

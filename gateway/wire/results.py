@@ -82,7 +82,8 @@ _CODES = ", ".join(f"{code} {name.replace('_', ' ') if name != 'none' else 'no r
 LAYOUT: tuple[Field, ...] = (
     Field("code", 0, "uint16", "code", f"verdict: {_CODES}"),
     Field("seq", 1, "uint16", "count", "assessment sequence number: +1 on every new "
-          "assessment, wraps 65535 -> 0 (if it stops changing, the analysis has stopped)"),
+          "assessment, wraps 65535 -> 0, never goes back across reloads and restarts (after "
+          "a crash it may jump ahead); if it stops changing, the analysis has stopped"),
     Field("stiction_index", 2, "float32", "0-1",
           "stiction index SI (>= 0.6 stiction-like, <= 0.4 not)"),
     Field("fd_percent", 4, "float32", _PERCENT, "fd, dynamic friction"),
@@ -128,9 +129,11 @@ def _num(x: float | None, factor: float = 1.0) -> float:
 
 
 def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
-    """The field values of one loop's block (fields left out are 0)."""
+    """The field values of one loop's block (fields left out are 0). Without an assessment
+    (none yet, or stale since start) every float is NaN, never 0: a SCADA screen must not
+    show "fd 0.0 %" for a loop never assessed; the sequence number and time are 0."""
     if result is None:
-        return {"code": code}
+        return {"code": code, **{f.name: math.nan for f in LAYOUT if f.type == "float32"}}
     a = result.assessment
     return {"code": code, "seq": result.seq % 65536,
             "stiction_index": _num(a.stiction_index), "fd_percent": _num(a.fd, 100.0),

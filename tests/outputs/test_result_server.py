@@ -15,11 +15,13 @@ from gateway.core.store import ResultStore
 from gateway.inputs.modbus import ModbusPoint
 from gateway.outputs.modbus_server import ResultServer
 from gateway.wire.codec import decode_registers
+from gateway.wire.results import result_block
 from stiction import Assessment, Verdict
 
 STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
                     stiction_index=0.93, fd=0.27, fs=0.30, jump=0.03, fd_op=27.0, fs_op=30.0,
                     cycles_used=6)
+NONE = result_block(None, code=0).tolist()  # a block without assessment (floats NaN)
 NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0,
                    stiction_index=0.01)
 
@@ -78,7 +80,7 @@ def test_result_server_serves_blocks_and_refuses_writes() -> None:
             assert _decode_block(holding.registers[:20])["fd"] == pytest.approx(27.0)
             assert _decode_block(holding.registers[20:40])["code"] == 2
             tic = await client.read_input_registers(100, count=20, device_id=1)
-            assert tic.registers == [0] * 20  # no result yet: code 0
+            assert tic.registers == NONE  # no result yet: code 0, floats NaN
             # every kind of write is answered with exception 1 (illegal function)
             before = list(holding.registers)
             for rsp in [await client.write_register(0, 9, device_id=1),
@@ -126,7 +128,7 @@ def test_result_server_serves_each_unit_id_its_own_blocks() -> None:
             assert _decode_block(two.registers)["fill"] == pytest.approx(0.25)
             assert two_h.registers == two.registers
             three = await client.read_holding_registers(40, count=20, device_id=3)
-            assert three.registers == [0] * 20  # TIC301: no result yet
+            assert three.registers == NONE  # TIC301: no result yet
             assert (await client.read_holding_registers(60, count=1, device_id=2)).isError()
             # a write to the second unit id is refused, nothing changes
             for rsp in [await client.write_register(0, 9, device_id=2),
@@ -150,16 +152,18 @@ def test_result_server_serves_each_unit_id_its_own_blocks() -> None:
             assert rsp.isError()
             assert rsp.exception_code == 0x0A
             # rebound without unit id 3 (e.g. a reload removed TIC301's unit id): gone
-            assert server.serves(loops[:2])
-            assert not server.serves([*loops, _loop("X", 0, unit=5)])
-            with pytest.raises(ValueError, match="not all served"):
-                server.rebind([*loops, _loop("X", 0, unit=5)], st)
+            running = server.server
             server.rebind([*loops[:2], _loop("TIC301", 40, unit=2)], st)
             rsp = await client.read_input_registers(40, count=20, device_id=3)
             assert rsp.isError()
             assert rsp.exception_code == 0x0A
             moved = await client.read_input_registers(40, count=20, device_id=2)
             assert _decode_block(moved.registers)["code"] == 4
+            # a unit id new to the server is served by the running one, on the same connection
+            server.rebind([*loops[:2], _loop("TIC301", 40, unit=5)], st)
+            new = await client.read_input_registers(40, count=20, device_id=5)
+            assert _decode_block(new.registers)["code"] == 4
+            assert server.server is running
 
     run(go(), 30)
 

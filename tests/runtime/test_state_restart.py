@@ -48,7 +48,8 @@ def test_windows_and_results_survive_a_restart(tmp_path: Path,
         first.analyse(FAKE)
         first.analyse(FAKE)
         await first.tick(1)
-        await StateFile(first.runtime.binding(), wall=lambda: first.time.wall).save()
+        await StateFile(first.runtime.binding(), wall=lambda: first.time.wall).save(
+            final=True)  # as at a normal exit (after a kill, sequence numbers move on)
         first.time.advance(0.5)  # downtime: 10 samples missed
         second = Harness(parse_config(raw, "second"), time=first.time)
         sink = StateFile(second.runtime.binding(), wall=lambda: second.time.wall)

@@ -65,7 +65,10 @@ def test_result_block_layout(word_order: str) -> None:
     assert math.isnan(b["fs"])
     assert math.isnan(b["fd"])
     assert math.isnan(b["confidence"])  # assessed before confidence existed
-    assert result_block(None, code=0).tolist() == [0] * 20
+    none = _decode_block(result_block(None, code=0, word_order=word_order), word_order)
+    assert (none["code"], none["seq"], none["t"], none["reserved"]) == (0, 0, 0, 0)
+    for key in ("si", "fd", "fs", "period", "jump", "fill", "confidence"):
+        assert math.isnan(none[key]), key  # never assessed: NaN, never 0.0
     st.set_stale(np.array([0]), True)
     assert verdict_code(st.results[0], bool(st.stale[0])) == 6
 

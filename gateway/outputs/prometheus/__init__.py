@@ -1,21 +1,24 @@
 """Prometheus output (the ``metrics`` config section): the per-loop series read from the
 result store at scrape time (:mod:`.collector`) and the gateway's own series
-(:mod:`.devices`), in one explicitly passed registry, served over HTTP from a thread.
+(:mod:`.devices`), in one explicitly passed registry, served over HTTP by :mod:`.http`
+(asyncio, bounded connections, one rendering thread).
 """
 
 from __future__ import annotations
 
-import threading
 from typing import Any
-from wsgiref.simple_server import WSGIServer
 
-from prometheus_client import CollectorRegistry, disable_created_metrics, start_http_server
+from prometheus_client import CollectorRegistry, disable_created_metrics
 
-from ..base import Binding
+from ...config.model import Config
+from ...wire.listener import ListenerStats
+from ..base import Binding, Swap
 from .collector import StoreCollector
 from .devices import GatewayMetrics
+from .http import MetricsServer
 
-__all__ = ["GatewayMetrics", "PrometheusSink", "StoreCollector", "create_sink", "serve_metrics"]
+__all__ = ["GatewayMetrics", "MetricsServer", "PrometheusSink", "StoreCollector",
+           "create_sink"]
 
 disable_created_metrics()  # type: ignore[no-untyped-call]  # no _created series (they confuse dashboards, and promtool)
 
@@ -25,16 +28,10 @@ def create_sink(binding: Binding, *, registry: CollectorRegistry, metrics: Gatew
     return PrometheusSink(registry, metrics, serve_http=serve_http)
 
 
-def serve_metrics(registry: CollectorRegistry, host: str, port: int
-                  ) -> tuple[WSGIServer, threading.Thread]:
-    """Serve /metrics from a daemon thread; ``server.server_port`` is the bound port."""
-    server, thread = start_http_server(port, addr=host, registry=registry)
-    return server, thread
-
-
 class PrometheusSink:
     """Registers the store collector, keeps each configured device's series, and (with
-    ``serve_http``) serves /metrics on ``metrics.listen``, restarted when a reload moves it."""
+    ``serve_http``) serves /metrics on ``metrics.listen``; a reload that moves it binds the
+    new address first (:meth:`prepare`)."""
 
     def __init__(self, registry: CollectorRegistry, metrics: GatewayMetrics, *,
                  serve_http: bool = True) -> None:
@@ -42,14 +39,37 @@ class PrometheusSink:
         self.metrics = metrics
         self.serve_http = serve_http
         self.collector: StoreCollector | None = None
-        self.listen: tuple[str, int] | None = None
+        self.settings: Any = None  # the metrics section served
         self.devices: set[str] = set()
-        self._http: tuple[WSGIServer, threading.Thread] | None = None
+        self.http: MetricsServer | None = None
+        self.stats = ListenerStats()
+        metrics.track_server("metrics", self.stats)
         self.started = False
 
     @property
     def port(self) -> int | None:
-        return self._http[0].server_port if self._http else None
+        return self.http.port if self.http is not None else None
+
+    def _server(self, settings: Any) -> MetricsServer:
+        host, port = settings.listen
+        return MetricsServer(self.registry, host, port,
+                             max_connections=settings.max_connections,
+                             idle_timeout_s=settings.idle_timeout_s, stats=self.stats)
+
+    async def prepare(self, config: Config) -> Swap | None:
+        new = config.metrics
+        if self.http is None or self.settings is None or new.listen == self.settings.listen:
+            return None
+        server = self._server(new)
+        await server.open()
+
+        async def commit() -> None:  # serve on the new address, then let the old one go
+            await server.start()
+            old, self.http, self.settings = self.http, server, new
+            if old is not None:
+                await old.stop()
+
+        return Swap(commit, server.stop)
 
     async def bind(self, binding: Binding) -> None:
         cfg = binding.config
@@ -65,29 +85,32 @@ class PrometheusSink:
         for name in sorted(names - self.devices):
             self.metrics.add_device(name)
         self.devices = names
-        if cfg.metrics.listen != self.listen:
-            self.listen = cfg.metrics.listen
-            if self._http is not None:
-                self._stop_http()
-                self._start_http()
+        if self.http is not None and self.settings is not None \
+                and cfg.metrics.listen != self.settings.listen:  # not prepared: move now
+            swap = await self.prepare(cfg)
+            if swap is not None:
+                await swap.commit()
+        self.settings = cfg.metrics
+        if self.http is None:
+            return
+        self.http.listener.max_connections = cfg.metrics.max_connections
+        self.http.listener.idle_timeout_s = cfg.metrics.idle_timeout_s
 
     async def start(self) -> None:
         self.started = True
-        self._start_http()
+        await self._start_http()
 
-    def _start_http(self) -> None:
-        if self.serve_http and self.started and self.listen is not None:
-            self._http = serve_metrics(self.registry, *self.listen)
+    async def _start_http(self) -> None:
+        if self.serve_http and self.started and self.settings is not None:
+            server = self._server(self.settings)
+            await server.start()
+            self.http = server
 
-    def _stop_http(self) -> None:
-        assert self._http is not None
-        server, thread = self._http
-        server.shutdown()
-        server.server_close()
-        thread.join(timeout=5)
-        self._http = None
+    async def _stop_http(self) -> None:
+        server, self.http = self.http, None
+        if server is not None:
+            await server.stop()
 
     async def stop(self) -> None:
         self.started = False
-        if self._http is not None:
-            self._stop_http()
+        await self._stop_http()

@@ -56,13 +56,14 @@ class StateFile:
                                     time_scale=b.clock.time_scale)
         self._task = asyncio.create_task(self._persist(), name="persist")
 
-    async def save(self) -> int:
-        """Write the state file now (atomically); returns its size in bytes."""
+    async def save(self, *, final: bool = False) -> int:
+        """Write the state file now (atomically); returns its size in bytes. ``final``: the
+        last write before a normal exit (no assessment follows)."""
         async with self._lock:
             b = self.binding
             wall = self.wall()
             header, arrays = snapshot(b.config, b.groups, b.store, wall=wall,
-                                      proc=b.clock.now(wall))
+                                      proc=b.clock.now(wall), clean=final)
             t0 = time.perf_counter()
             size = await asyncio.to_thread(write_state, self.path, header, arrays)
             self.last_save_s = time.perf_counter() - t0
@@ -95,6 +96,6 @@ class StateFile:
             await self._task
         self._task = None
         try:
-            await self.save()
+            await self.save(final=True)
         except Exception:
             log.exception("state file: final write failed")

@@ -6,7 +6,10 @@ Format (version 1): a numpy ``.npz`` archive (zip of ``.npy`` arrays, loaded wit
 * ``header``: UTF-8 JSON as a uint8 array - ``format`` (``stiction-gateway-state``),
   ``version``, the wall and process time of the save, and per window bank its sample time,
   its loops (name + window signature) and per loop the latest assessment
-  (:meth:`stiction.Assessment.to_dict`) with its sequence number, time and window fill;
+  (:meth:`stiction.Assessment.to_dict`) with its sequence number, time and window fill,
+  the loop's last sequence number, whether the write was the last before a normal exit
+  (``clean``) and the analysis interval (how far sequence numbers may have moved on after
+  an unclean exit);
 * per bank ``bK_t`` (float64, rows), ``bK_op``/``bK_pv`` (float32, rows × loops) and
   ``bK_q`` (uint8 quality), the stored samples oldest first.
 
@@ -62,10 +65,15 @@ class StateError(Exception):
 
 
 def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
-             wall: float, proc: float) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
-    """Copy everything to persist (fast, on the event loop); write it with write_state."""
+             wall: float, proc: float, clean: bool = False
+             ) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+    """Copy everything to persist (fast, on the event loop); write it with write_state.
+    ``clean``: the last write before a normal exit (no assessment can follow it)."""
+    g = config.gateway
     header: dict[str, Any] = {"format": FORMAT, "version": VERSION, "saved_wall": wall,
-                              "saved_proc": proc, "banks": []}
+                              "saved_proc": proc, "clean": clean,
+                              "analysis_interval_wall_s": g.analysis_interval_s / g.time_scale,
+                              "banks": []}
     arrays: dict[str, NDArray[Any]] = {}
     for k, b in enumerate(banks):
         t, op, pv, q = b.bank.series(np.arange(len(b.configs)))
@@ -80,6 +88,8 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                                      "result_signature": result_signature(config, cfg)}
             i = store.index.get(cfg.name)
             res = store.results[i] if i is not None else None
+            if i is not None:
+                entry["seq"] = store.last_seq(i)
             if res is not None:
                 entry["result"] = {"assessment": res.assessment.to_dict(), "seq": res.seq,
                                    "t": res.t, "window_fill": res.window_fill,

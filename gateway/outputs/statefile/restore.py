@@ -28,7 +28,7 @@ from ...core.store import LoopResult, ResultStore
 from ...core.windows import LoopGroup, load_columns, loop_signature, result_signature
 from .format import StateError, read_state, set_aside
 
-__all__ = ["RestoreReport", "restore_state"]
+__all__ = ["RestoreReport", "restore_state", "seq_bump"]
 
 log = logging.getLogger("gateway.state")
 
@@ -73,6 +73,12 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
             if isinstance(entry, dict) and isinstance(entry.get("name"), str):
                 saved[entry["name"]] = (k, c, entry)
     down_proc = max(0.0, wall - float(header["saved_wall"])) * time_scale
+    bump = seq_bump(header, wall, config.gateway.analysis_interval_s / time_scale)
+    for name, (_k, _c, entry) in saved.items():
+        i = store.index.get(name)
+        seq = entry.get("seq", (entry.get("result") or {}).get("seq", 0))
+        if i is not None and isinstance(seq, int) and seq > 0:
+            store.seq_floor[i] = seq + bump
     for ref in banks:
         columns: dict[int, tuple[NDArray[Any], NDArray[Any], NDArray[Any]]] = {}
         t_best: NDArray[np.float64] = np.empty(0)
@@ -95,7 +101,8 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
             if res is not None and entry.get("result_signature") == result_signature(config,
                                                                                        cfg):
                 try:
-                    lr = LoopResult(Assessment.from_dict(res["assessment"]), int(res["seq"]),
+                    lr = LoopResult(Assessment.from_dict(res["assessment"]),
+                                    int(res["seq"]) + bump,
                                     float(res["t"]), float(res["window_fill"]),
                                     int(res["samples"]))
                 except (KeyError, TypeError, ValueError) as exc:
@@ -121,3 +128,18 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
              "downtime gap %d samples", p, report.restored_windows, report.restored_results,
              len(report.fresh), report.gap_rows)
     return report
+
+
+def seq_bump(header: dict[str, Any], wall: float, interval_wall_s: float) -> int:
+    """How much to add to the saved sequence numbers so that they never go backwards: 0
+    after a clean exit (the file was written last); after a kill, one more than the analysis
+    rounds that could have run between the save and now (``wall``), as the file lags the
+    registers SCADA read by up to one ``persist_interval_s``."""
+    if header.get("clean") is True:
+        return 0
+    try:
+        interval = float(header.get("analysis_interval_wall_s") or interval_wall_s)
+        down = max(0.0, wall - float(header["saved_wall"]))
+        return int(down // max(interval, 1e-3)) + 1
+    except (TypeError, ValueError):
+        return 1

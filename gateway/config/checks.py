@@ -1,0 +1,215 @@
+"""What ``run`` would refuse or crash on, refused at load (so ``check-config`` says it first).
+
+Each check adds one problem line naming the section and the key:
+
+* **memory**: the loop windows, twice (the state file copies them when it writes), must fit
+  ``gateway.memory_limit_mb`` (default: half of this machine's memory, or of the service's
+  memory limit if lower). ``window_s: 1e9`` or ``poll_interval_s: 1e-6`` would otherwise end
+  in MemoryError at start, or in the machine swapping.
+* **state file**: ``gateway.state_file`` must not be the config file (the gateway would
+  overwrite it) nor an existing file that is not a state file (anything but an empty file
+  or a zip archive: a state file that cannot be read is set aside, a stranger's file must
+  not be).
+* **listeners**: ``metrics.listen`` and ``modbus_server.listen`` must not share a port on
+  overlapping addresses.
+* **file descriptors**: the connections the servers may hold plus the devices and workers
+  must fit the process's limit (``LimitNOFILE`` of the unit): :func:`fds_needed`.
+
+:func:`bind_check` (``check-config --bind-check``) also tries to bind both listeners.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import resource
+import socket
+from pathlib import Path
+from typing import Any
+
+from ..wire.registers import IDENTIFICATION_OBJECTS
+from .model import Config
+from .schema import Problems
+
+__all__ = ["FDS_BASE", "FDS_PER_DEVICE", "FDS_PER_WORKER", "bind_check", "check_config",
+           "default_memory_limit_mb", "fds_needed", "identification", "machine_memory_bytes",
+           "window_bytes"]
+
+FDS_BASE = 64  # interpreter, log, state file, the workers' queues, sd_notify
+FDS_PER_DEVICE = 2  # a connection (OPC UA: and the endpoint probe)
+FDS_PER_WORKER = 2  # a process sentinel and its share of the pool's pipes
+WILDCARDS = frozenset({"", "0.0.0.0", "::", "*"})
+MAX_IDENTIFICATION_CHARS = 30  # 7 objects fit one Modbus answer (253 bytes)
+
+
+def check_config(problems: Problems, config: Config) -> None:
+    """Add a problem line for each check of the module docstring that ``config`` fails."""
+    _check_memory(problems, config)
+    _check_state_file(problems, config)
+    _check_listeners(problems, config)
+    _check_fds(problems, config)
+
+
+# ---------------------------------------------------------------------------- memory
+
+
+def machine_memory_bytes() -> int:
+    """Physical memory, or the cgroup's memory limit (systemd ``MemoryMax=``) if lower."""
+    total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
+        with contextlib.suppress(OSError, ValueError):
+            total = min(total, int(Path(path).read_text().strip()))
+    return int(total)
+
+
+def default_memory_limit_mb() -> float:
+    """``gateway.memory_limit_mb`` when not set: half of :func:`machine_memory_bytes`."""
+    return machine_memory_bytes() / 2 / 2**20
+
+
+def window_bytes(config: Config) -> int:
+    """Bytes of every loop window: 9 per sample and loop (float32 OP and PV, a quality
+    byte) and 8 per sample and window bank (a time stamp); a bank per device and length."""
+    total = 0
+    banks: set[tuple[str, int]] = set()
+    for lp in config.loops:
+        n = config.window_samples(lp)
+        total += 9 * n
+        banks.add((lp.device, n))
+    return total + sum(8 * n for _dev, n in banks)
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
+
+
+def _check_memory(problems: Problems, config: Config) -> None:
+    limit_mb = config.gateway.memory_limit_mb
+    origin = "gateway.memory_limit_mb"
+    if limit_mb is None:
+        limit_mb, origin = default_memory_limit_mb(), "half this machine's memory"
+    budget = limit_mb * 2**20
+    need = 2 * window_bytes(config)
+    if need <= budget or not config.loops:
+        return
+    big = max(config.loops, key=config.window_samples)
+    n = config.window_samples(big)
+    dev = config.device(big.device)
+    what = (f"window_s {big.window_s:g} / poll_interval_s {dev.poll_interval_s:g} of device "
+            f"{dev.name}")
+    shown = f"{limit_mb:,.0f}" if limit_mb >= 10 else f"{limit_mb:g}"
+    budget_text = f"the memory budget of {shown} MiB ({origin})"
+    if 2 * 9 * n > budget:
+        problems.add(f"loop {big.name}", "window_s",
+                     f"its window of {n:,} samples ({what}) needs {_gib(2 * 9 * n)} with the "
+                     f"state file's copy, over {budget_text}: shorten window_s or lengthen "
+                     "poll_interval_s")
+        return
+    problems.add("gateway", "memory_limit_mb",
+                 f"the loop windows need {_gib(need)} with the state file's copy, over "
+                 f"{budget_text}; the largest is loop {big.name}'s, {n:,} samples ({what}): "
+                 "shorten window_s, lengthen poll_interval_s or raise "
+                 "gateway.memory_limit_mb")
+
+
+# ---------------------------------------------------------------------------- state file
+
+
+def _check_state_file(problems: Problems, config: Config) -> None:
+    state = Path(config.gateway.state_file)
+    source = Path(config.source)
+    if source.is_file() and (state.resolve() == source.resolve()
+                             or (state.exists() and os.path.samefile(state, source))):
+        problems.add("gateway", "state_file", f"{state} is this config file: the gateway "
+                     "would overwrite it with its state")
+        return
+    if state.is_dir():
+        problems.add("gateway", "state_file", f"{state} is a directory; name a file in it")
+        return
+    if state.exists() and not _state_like(state):
+        problems.add("gateway", "state_file", f"{state} exists and is not a gateway state "
+                     "file (not a zip archive): the gateway would set it aside and write "
+                     "its state there; name another file")
+
+
+def _state_like(path: Path) -> bool:
+    """Empty, or a zip archive (a state file, maybe truncated, or a foreign one: both are
+    set aside at start with a warning)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+    except OSError:
+        return True  # unreadable: the gateway reports it when it starts
+    return head in (b"", b"PK\x03\x04")
+
+
+# ---------------------------------------------------------------------------- listeners
+
+
+def _overlap(a: tuple[str, int], b: tuple[str, int]) -> bool:
+    return a[1] == b[1] != 0 and (a[0] == b[0] or a[0] in WILDCARDS or b[0] in WILDCARDS)
+
+
+def _check_listeners(problems: Problems, config: Config) -> None:
+    m, r = config.metrics.listen, config.modbus_server.listen
+    if _overlap(m, r):
+        problems.add("metrics", "listen", f"{m[0]}:{m[1]} is the port of modbus_server.listen "
+                     f"({r[0]}:{r[1]}): the two servers need two ports")
+
+
+def bind_check(config: Config) -> list[str]:
+    """Try to bind each listener (and let go at once); a problem line for each in use."""
+    problems = Problems(config.source)
+    for section, (host, port) in (("metrics", config.metrics.listen),
+                                  ("modbus_server", config.modbus_server.listen)):
+        try:
+            with socket.create_server((host, port)):
+                pass
+        except OSError as exc:
+            problems.add(section, "listen", f"cannot listen on {host}:{port}: "
+                         f"{exc.strerror or exc}")
+    return problems.lines
+
+
+# ---------------------------------------------------------------------------- descriptors
+
+
+def fds_needed(config: Config) -> int:
+    """File descriptors the gateway may hold at once with this config."""
+    workers = config.gateway.analysis_workers or max(1, (os.cpu_count() or 2) - 1)
+    return (FDS_BASE + config.modbus_server.max_connections + config.metrics.max_connections
+            + FDS_PER_DEVICE * len(config.devices) + FDS_PER_WORKER * workers)
+
+
+def _check_fds(problems: Problems, config: Config) -> None:
+    _soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    need = fds_needed(config)
+    if hard == resource.RLIM_INFINITY or need <= hard:
+        return
+    problems.add("modbus_server", "max_connections",
+                 f"the gateway may need {need:,} file descriptors ({FDS_BASE} + "
+                 f"modbus_server.max_connections + metrics.max_connections + "
+                 f"{FDS_PER_DEVICE} per device + {FDS_PER_WORKER} per analysis worker), over "
+                 f"this process's limit of {hard:,} (LimitNOFILE): raise LimitNOFILE or "
+                 "lower max_connections")
+
+
+# ---------------------------------------------------------------------------- converters
+
+
+def identification(value: Any) -> tuple[tuple[str, str], ...]:
+    """``modbus_server.identification``: what read device identification answers."""
+    if not isinstance(value, dict):
+        raise TypeError("must be a mapping of identification objects")
+    unknown = [str(k) for k in value if k not in IDENTIFICATION_OBJECTS]
+    if unknown:
+        raise ValueError(f"unknown object {unknown[0]!r} (known: "
+                         f"{', '.join(IDENTIFICATION_OBJECTS)})")
+    if not all(k in value for k in IDENTIFICATION_OBJECTS[:3]):
+        raise ValueError("needs vendor_name, product_code and revision")
+    for k, text in value.items():
+        if not isinstance(text, str) or not text.isascii() or not text.isprintable() \
+                or not 0 < len(text) <= MAX_IDENTIFICATION_CHARS:
+            raise ValueError(f"{k} must be printable ASCII text of 1 to "
+                             f"{MAX_IDENTIFICATION_CHARS} characters")
+    return tuple((k, value[k]) for k in IDENTIFICATION_OBJECTS if k in value)

@@ -1,0 +1,75 @@
+"""Log lines rate-limited per cause, so that no flood of events can flood the journal.
+
+:class:`RateLimit` is a :class:`logging.Filter` for the handlers of ``stiction-gateway
+run``: a *cause* is a logger, a level, a message template and its first argument (the
+device, loop or server the line is about), so "device plc1: down" and "device plc2: down"
+are two causes. Each cause may log :data:`BURST` lines per :data:`PERIOD_S`; the lines
+beyond are dropped and counted, and the next line of that cause says how many were. The
+filter keeps at most :data:`MAX_CAUSES` causes (the least recent are forgotten).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Hashable
+
+__all__ = ["BURST", "MAX_CAUSES", "PERIOD_S", "RateLimit", "install_rate_limit"]
+
+BURST = 20
+PERIOD_S = 60.0
+MAX_CAUSES = 10_000
+
+
+class RateLimit(logging.Filter):
+    """At most ``burst`` records per cause per ``period_s`` seconds (see the module)."""
+
+    def __init__(self, burst: int = BURST, period_s: float = PERIOD_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__()
+        self.burst, self.period_s, self.clock = burst, period_s, clock
+        self.causes: OrderedDict[Hashable, list[float]] = OrderedDict()  # [start, n, dropped]
+        self.dropped = 0  # every record dropped so far
+
+    @staticmethod
+    def cause(record: logging.LogRecord) -> Hashable:
+        args = record.args
+        first = args[0] if isinstance(args, tuple) and args else None
+        return (record.name, record.levelno, str(record.msg)[:200],
+                first if isinstance(first, str | int) else None)
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        now = self.clock()
+        key = self.cause(record)
+        state = self.causes.get(key)
+        if state is None:
+            state = self.causes[key] = [now, 0.0, 0.0]
+            if len(self.causes) > MAX_CAUSES:
+                self.causes.popitem(last=False)
+        else:
+            self.causes.move_to_end(key)
+        if now - state[0] >= self.period_s:
+            state[0], state[1] = now, 0.0
+        if state[1] >= self.burst:
+            state[2] += 1
+            self.dropped += 1
+            return False
+        state[1] += 1
+        if state[2]:
+            record.msg = f"{record.getMessage()} [{int(state[2])} more like this dropped]"
+            record.args = None
+            state[2] = 0.0
+        return True
+
+
+def install_rate_limit(logger: logging.Logger | None = None) -> list[RateLimit]:
+    """Give every handler of ``logger`` (default: the root) its own :class:`RateLimit`."""
+    limits = []
+    for handler in (logger or logging.getLogger()).handlers:
+        if any(isinstance(f, RateLimit) for f in handler.filters):
+            continue  # installed already
+        limit = RateLimit()
+        handler.addFilter(limit)
+        limits.append(limit)
+    return limits
