@@ -53,8 +53,13 @@ def load_config(path: str | os.PathLike[str]) -> Config:
     return parse_config(read_document(path), source)  # within limits.py's bounds
 
 
-def parse_config(data: Any, source: str = "<config>") -> Config:
-    """Validate an already-parsed YAML document (a mapping)."""
+def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = True) -> Config:
+    """Validate an already-parsed YAML document (a mapping).
+
+    ``one_gateway=False`` validates the loops of several gateways at once (a tag list before
+    ``shard`` splits it): every key and row is checked, but not what belongs to each gateway
+    alone (its result blocks fitting and not overlapping, its memory and listeners); the
+    split checks those per gateway."""
     problems = Problems(source)
     top = Section(problems, "top level", data)
     if data is None or not top.valid:
@@ -120,14 +125,16 @@ def parse_config(data: Any, source: str = "<config>") -> Config:
             loops.append(loop)
     top.done()
     loops, assigned, full = assign_result_addresses(loops, blocks)
-    for name, message in full.items():
-        sections[name].error("result_address", message)
-    _check_result_blocks(problems, sections, blocks, server.unit_id)
+    if one_gateway:
+        for name, message in full.items():
+            sections[name].error("result_address", message)
+        _check_result_blocks(problems, sections, blocks, server.unit_id)
     if not problems.ok:
         raise ConfigError(problems.lines)
     config = Config(source, tuple(d for d in devices.values() if d is not None),
                     tuple(loops), gateway, metrics, server, assigned=tuple(assigned))
-    check_config(problems, config)  # what run would refuse or crash on (checks.py)
+    if one_gateway:
+        check_config(problems, config)  # what run would refuse or crash on (checks.py)
     if not problems.ok:
         raise ConfigError(problems.lines)
     return config

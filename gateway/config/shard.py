@@ -82,7 +82,8 @@ def shard_tags(csv_path: str | Path, gateways: int, config: str | Path | None = 
         data.pop("loops_csv", None)  # the tag list named on the command line is the list
     else:
         source, data = str(csv_path), {"devices": guessed_devices(table)}
-    whole = parse_config({**data, "loops_csv": table}, source)
+    # every row checked here; each gateway's own limits (result blocks, memory) per shard
+    whole = parse_config({**data, "loops_csv": table}, source, one_gateway=False)
     counts: dict[str, int] = {}
     for lp in whole.loops:
         counts[lp.device] = counts.get(lp.device, 0) + 1

@@ -197,3 +197,24 @@ def test_random_lists_split_whole_and_balanced(tmp_path: Path, seed: int) -> Non
     assert max(sizes) - min(sizes) <= max(loads.values())
     with pytest.raises(ConfigError):
         shard_tags(tmp_path / "t.csv", plcs + 1, tmp_path / "b.yaml")
+
+
+def test_a_list_too_large_for_one_gateway_is_split(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """The point of sharding: 4,000 loops do not fit one result unit id (3,276 blocks), but
+    two gateways of 2,000 each do; the whole list is not refused for what only a single
+    gateway would hold. One PLC too large for any gateway is refused, nothing written."""
+    tags = tmp_path / "big.csv"
+    names = _tag_list(tags, {"plcA": 2000, "plcB": 2000})
+    shards, _ = shard_tags(tags, 2)
+    assert [s.loops for s in shards] == [2000, 2000]
+    assert sorted(lp.name for s in shards for lp in s.config.loops) == sorted(names)
+    for s in shards:
+        assert max(lp.result_address for lp in s.config.loops) == 20 * 1999
+    tags = tmp_path / "huge.csv"
+    _tag_list(tags, {"plcA": 3300, "plcB": 10})
+    out = tmp_path / "none"
+    assert main(["shard", "--gateways", "2", str(tags), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "no free result block left on result unit id 1" in err
+    assert not out.exists()
