@@ -201,6 +201,7 @@ def run_fleet(gateways: int = GATEWAYS, loops: int = LOOPS, *, seconds: float = 
             path.write_text(yaml.safe_dump(sim, sort_keys=False))
             procs.append(_start([*py, "plc-sim", "--config", str(path)],
                                 work / f"plc-sim-{k + 1}.log"))
+            wait_port(port, 60)  # listening before the next free port is picked
             sims.append(path)
             ports.append(port)
         tags, base = _tag_list(work, sims, ports, loops)
@@ -214,8 +215,6 @@ def run_fleet(gateways: int = GATEWAYS, loops: int = LOOPS, *, seconds: float = 
             cfg["modbus_server"] = {"listen": f"127.0.0.1:{free_port()}"}
             cfg["gateway"]["state_file"] = str(work / f"{s.yaml_name}.state")
             (work / s.yaml_name).write_text(yaml.safe_dump(cfg, sort_keys=False))
-            for port in ports:
-                wait_port(port, 60)
             gw = _start([*py, "run", "--config", str(work / s.yaml_name)],
                         work / f"{s.yaml_name}.log")
             procs.append(gw)

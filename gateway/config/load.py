@@ -124,8 +124,9 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
         if loop is not None:
             loops.append(loop)
     top.done()
-    loops, assigned, full = assign_result_addresses(loops, blocks)
-    if one_gateway:
+    assigned: list[str] = []
+    if one_gateway:  # several gateways: each assigns its own blocks
+        loops, assigned, full = assign_result_addresses(loops, blocks)
         for name, message in full.items():
             sections[name].error("result_address", message)
         _check_result_blocks(problems, sections, blocks, server.unit_id)

@@ -206,6 +206,9 @@ def test_a_list_too_large_for_one_gateway_is_split(tmp_path: Path,
     gateway would hold. One PLC too large for any gateway is refused, nothing written."""
     tags = tmp_path / "big.csv"
     names = _tag_list(tags, {"plcA": 2000, "plcB": 2000})
+    head, *rows = tags.read_text().splitlines(keepends=True)[1:]
+    rows.sort(key=lambda row: row.split(";")[1])  # all of plcA, then all of plcB
+    tags.write_text(head + "".join(rows))
     shards, _ = shard_tags(tags, 2)
     assert [s.loops for s in shards] == [2000, 2000]
     assert sorted(lp.name for s in shards for lp in s.config.loops) == sorted(names)
