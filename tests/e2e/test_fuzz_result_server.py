@@ -16,13 +16,13 @@ import asyncio
 import concurrent.futures
 import logging
 import multiprocessing
-import socket
 import struct
 import time
 from typing import Any
 
 import numpy as np
 import pytest
+from hostile_support import exchange
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from prometheus_client import CollectorRegistry
@@ -87,20 +87,6 @@ def _frame(tid: int, unit: int, pdu: bytes, length: int | None = None) -> bytes:
     return struct.pack(">HHHB", tid, 0, n & 0xFFFF, unit) + pdu
 
 
-def _exchange(port: int, data: bytes, want_reply: bool, limit_s: float = 2.0) -> bytes:
-    with socket.create_connection(("127.0.0.1", port), timeout=limit_s) as s:
-        s.sendall(data)
-        if not want_reply:
-            return b""
-        reply = b""
-        while len(reply) < 7 or len(reply) < 6 + struct.unpack(">H", reply[4:6])[0]:
-            chunk = s.recv(4096)
-            if not chunk:
-                break
-            reply += chunk
-        return reply
-
-
 u16 = st.integers(0, 0xFFFF)
 reads = st.tuples(st.sampled_from([3, 4]), st.integers(0, 140), st.integers(1, 125))
 oversize = st.tuples(st.sampled_from([3, 4]), u16, st.integers(126, 0xFFFF))
@@ -160,17 +146,17 @@ def test_result_server_survives_hostile_input() -> None:
         kind, arg = case
         tried[kind] = tried.get(kind, 0) + 1
         if kind == "bytes":
-            _exchange(port, arg, want_reply=False)
+            exchange(port, arg, 2.0, want_reply=False)
         elif kind == "frame":
             tid, unit, fc, body, length = arg
-            _exchange(port, _frame(tid, unit, bytes([fc]) + body, length), want_reply=False)
+            exchange(port, _frame(tid, unit, bytes([fc]) + body, length), 2.0, want_reply=False)
         elif kind == "truncated":
             (fc, addr, count), cut = arg
             data = _frame(7, 1, struct.pack(">BHH", fc, addr, count))
-            _exchange(port, data[:cut], want_reply=False)
+            exchange(port, data[:cut], 2.0, want_reply=False)
         elif kind == "read":
             fc, addr, count = arg
-            reply = _exchange(port, _frame(9, 1, struct.pack(">BHH", fc, addr, count)), True)
+            reply = exchange(port, _frame(9, 1, struct.pack(">BHH", fc, addr, count)), 2.0)
             assert reply[:2] == b"\x00\x09" and reply[6] == 1
             if addr + count <= len(image):
                 assert reply[7] == fc and reply[8] == 2 * count, reply
@@ -181,15 +167,16 @@ def test_result_server_survives_hostile_input() -> None:
                 assert reply[7:9] == bytes([fc | 0x80, 2]), reply  # illegal address
         elif kind == "wrong_unit":
             (fc, addr, count), unit = arg
-            reply = _exchange(port, _frame(5, unit, struct.pack(">BHH", fc, addr, count)),
-                              True)
+            reply = exchange(port, _frame(5, unit, struct.pack(">BHH", fc, addr, count)),
+                             2.0)
             assert reply[7] == fc | 0x80, reply  # an exception, never data
         elif kind == "oversize":
             fc, addr, count = arg
-            _exchange(port, _frame(3, 1, struct.pack(">BHH", fc, addr, count)), False)
+            exchange(port, _frame(3, 1, struct.pack(">BHH", fc, addr, count)), 2.0,
+                     want_reply=False)
         else:
             fc, addr, body = arg
-            reply = _exchange(port, _frame(11, 1, _write_pdu(fc, addr, body)), True)
+            reply = exchange(port, _frame(11, 1, _write_pdu(fc, addr, body)), 2.0)
             if reply:
                 assert reply[7] == fc | 0x80, (fc, reply)  # refused
                 checked["refused_writes"] += 1
@@ -199,8 +186,8 @@ def test_result_server_survives_hostile_input() -> None:
         fuzz_s = time.monotonic() - t0
         # many clients at once, every one must get the right registers
         def client(_: int) -> bool:
-            reply = _exchange(port, _frame(1, 1, struct.pack(">BHH", 3, 0, 20 * N_LOOPS)),
-                              True, limit_s=10)
+            reply = exchange(port, _frame(1, 1, struct.pack(">BHH", 3, 0, 20 * N_LOOPS)),
+                             limit_s=10)
             regs = np.frombuffer(reply[9:], dtype=">u2")
             return bool(np.array_equal(regs, image[:20 * N_LOOPS]))
 

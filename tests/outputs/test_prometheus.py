@@ -9,36 +9,19 @@ import os
 import shutil
 import subprocess
 
-import numpy as np
 import pytest
 from prometheus_client import CollectorRegistry, generate_latest
+from result_fixtures import sample_store
 
 from gateway.config import parse_config
 from gateway.core.store import ResultStore
 from gateway.outputs.base import Binding
 from gateway.outputs.prometheus import GatewayMetrics, PrometheusSink, StoreCollector
-from stiction import Assessment, Verdict
-
-STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
-                    stiction_index=0.93, fd=0.27, fs=0.30, jump=0.03, fd_op=27.0, fs_op=30.0,
-                    cycles_used=6, confidence=0.91)
-NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0,
-                   stiction_index=0.01)
-
-
-def _store() -> ResultStore:
-    st = ResultStore(["FIC101", "FIC401", "TIC301"])
-    st.set_result(0, STICKY, t=1_700_000_000.5, window_fill=1.0, samples=1800)
-    st.set_result(0, STICKY, t=1_700_000_300.0, window_fill=0.5, samples=1800)
-    st.set_result(1, NO_KP, t=1_700_000_300.0, window_fill=0.25, samples=900)
-    st.latest_op[:] = [51.5, 49.0, np.nan]
-    st.latest_pv[:] = [50.2, 47.0, np.nan]
-    return st
 
 
 def _registry() -> CollectorRegistry:
     registry = CollectorRegistry()
-    registry.register(StoreCollector(_store()))
+    registry.register(StoreCollector(sample_store()))
     metrics = GatewayMetrics(registry)
     metrics.add_device("plc1")
     metrics.device_up.labels(device="plc1").set(1)

@@ -9,36 +9,20 @@ import numpy as np
 import pytest
 from gateway_helpers import run
 from pymodbus.client import AsyncModbusTcpClient
+from result_fixtures import STICKY, sample_store
 
 from gateway.config import LoopConfig, PointConfig, ResultServerSettings
-from gateway.core.store import ResultStore
 from gateway.inputs.modbus import ModbusPoint
 from gateway.outputs.modbus_server import ResultServer
 from gateway.wire.codec import decode_registers
 from gateway.wire.results import result_block
-from stiction import Assessment, Verdict
 
-STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
-                    stiction_index=0.93, fd=0.27, fs=0.30, jump=0.03, fd_op=27.0, fs_op=30.0,
-                    cycles_used=6)
 NONE = result_block(None, code=0).tolist()  # a block without assessment (floats NaN)
-NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0,
-                   stiction_index=0.01)
 
 
 def _loop(name: str, address: int, unit: int | None = None) -> LoopConfig:
     point = PointConfig(ModbusPoint(0, "float32"))
     return LoopConfig(name, "plc", point, point, result_address=address, result_unit_id=unit)
-
-
-def _store() -> ResultStore:
-    st = ResultStore(["FIC101", "FIC401", "TIC301"])
-    st.set_result(0, STICKY, t=1_700_000_000.5, window_fill=1.0, samples=1800)
-    st.set_result(0, STICKY, t=1_700_000_300.0, window_fill=0.5, samples=1800)
-    st.set_result(1, NO_KP, t=1_700_000_300.0, window_fill=0.25, samples=900)
-    st.latest_op[:] = [51.5, 49.0, np.nan]
-    st.latest_pv[:] = [50.2, 47.0, np.nan]
-    return st
 
 
 def _decode_block(regs: list[int] | np.ndarray, word_order: str = "big") -> dict[str, float]:
@@ -66,7 +50,7 @@ async def _client_of(server: ResultServer) -> AsyncIterator[AsyncModbusTcpClient
 
 
 def test_result_server_serves_blocks_and_refuses_writes() -> None:
-    st = _store()
+    st = sample_store()
     loops = [_loop("FIC101", 0), _loop("FIC401", 20), _loop("TIC301", 100)]
     settings = ResultServerSettings(listen=("127.0.0.1", 0), unit_id=1)
 
@@ -110,7 +94,7 @@ def test_result_server_serves_blocks_and_refuses_writes() -> None:
 
 
 def test_result_server_serves_each_unit_id_its_own_blocks() -> None:
-    st = _store()
+    st = sample_store()
     # FIC101 on the default unit id 1, FIC401 at the same address on unit id 2,
     # TIC301 on unit id 3 further up
     loops = [_loop("FIC101", 0), _loop("FIC401", 0, unit=2), _loop("TIC301", 40, unit=3)]
@@ -169,7 +153,7 @@ def test_result_server_serves_each_unit_id_its_own_blocks() -> None:
 
 
 def test_result_server_with_unit_id_0_answers_every_unserved_id() -> None:
-    st = _store()
+    st = sample_store()
     loops = [_loop("FIC101", 0), _loop("FIC401", 0, unit=2)]
     settings = ResultServerSettings(listen=("127.0.0.1", 0), unit_id=0)
 

@@ -79,10 +79,14 @@ def frame(tid: int, unit: int, pdu: bytes) -> bytes:
     return struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu
 
 
-def exchange(port: int, data: bytes, limit_s: float = 3.0) -> bytes:
-    """Send ``data`` and return one Modbus TCP answer (b"" if the server closed)."""
+def exchange(port: int, data: bytes, limit_s: float = 3.0, *, want_reply: bool = True
+             ) -> bytes:
+    """Send ``data`` and return one Modbus TCP answer (b"" if the server closed, or at once
+    without ``want_reply``)."""
     with socket.create_connection(("127.0.0.1", port), timeout=limit_s) as s:
         s.sendall(data)
+        if not want_reply:
+            return b""
         reply = b""
         while len(reply) < 7 or len(reply) < 6 + struct.unpack(">H", reply[4:6])[0]:
             chunk = s.recv(4096)

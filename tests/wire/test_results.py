@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from result_fixtures import NO_KP, sample_store
 
 from gateway.core.store import ResultStore
 from gateway.wire.results import (
@@ -18,21 +19,6 @@ from gateway.wire.results import (
     unit_images,
     verdict_code,
 )
-from stiction import Assessment, Verdict
-
-STICKY = Assessment(Verdict.STICTION, "test", oscillating=True, period_s=228.0,
-                    stiction_index=0.93, fd=0.27, fs=0.30, jump=0.03, fd_op=27.0, fs_op=30.0,
-                    cycles_used=6, confidence=0.91)
-NO_KP = Assessment(Verdict.NO_STICTION, "test", oscillating=True, period_s=600.0,
-                   stiction_index=0.01)
-
-
-def _store() -> ResultStore:
-    st = ResultStore(["FIC101", "FIC401", "TIC301"])
-    st.set_result(0, STICKY, t=1_700_000_000.5, window_fill=1.0, samples=1800)
-    st.set_result(0, STICKY, t=1_700_000_300.0, window_fill=0.5, samples=1800)
-    st.set_result(1, NO_KP, t=1_700_000_300.0, window_fill=0.25, samples=900)
-    return st
 
 
 def _decode_block(regs: np.ndarray, word_order: str = "big") -> dict[str, float]:
@@ -45,7 +31,7 @@ def _decode_block(regs: np.ndarray, word_order: str = "big") -> dict[str, float]
 
 @pytest.mark.parametrize("word_order", ["big", "little"])
 def test_result_block_layout(word_order: str) -> None:
-    st = _store()
+    st = sample_store(latest=False)
     b = _decode_block(result_block(st.results[0], code=verdict_code(st.results[0]),
                                    word_order=word_order), word_order)
     assert b["code"] == 4
@@ -81,7 +67,7 @@ def test_the_layout_fits_the_block_and_the_codes_are_the_documented_ones() -> No
     assert VERDICT_CODES == {"none": 0, "not_oscillating": 1, "no_stiction": 2,
                              "undetermined": 3, "stiction": 4, "bad_data": 5, "stale": 6,
                              "valve_not_responding": 7}
-    st = _store()
+    st = sample_store(latest=False)
     assert [verdict_code(r) for r in st.results] == [4, 2, 0]
     assert verdict_code(st.results[0], stale=True) == 6
 
