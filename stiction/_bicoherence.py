@@ -297,7 +297,7 @@ def _squared_bicoherence(spec: NDArray[np.complex128], i: NDArray[np.intp],
         prod *= conj[ij[lo:hi]]
         b[lo:hi] = prod.sum(axis=1)
     b /= k
-    eps = max(float(np.percentile(d, EPSILON_PERCENTILE)), EPSILON_FLOOR * float(d.max()))
+    eps = max(v.percentiles(d, (EPSILON_PERCENTILE,))[0], EPSILON_FLOOR * float(d.max()))
     return np.asarray((b.real**2 + b.imag**2) / (d + eps))
 
 

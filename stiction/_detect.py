@@ -42,7 +42,7 @@ from scipy import ndimage
 
 from ._oscillation import detrend
 from ._segments import ragged, row_chunks
-from ._validate import FloatArray, median
+from ._validate import FloatArray, median, percentiles
 
 __all__ = ["NO_STICTION_SI", "STICTION_SI", "StictionIndex", "half_periods", "stiction_index"]
 
@@ -77,7 +77,7 @@ def half_periods(x: FloatArray, period: float, *,
     y = detrend(x) if detrended is None else detrended
     win = max(1, round(period / 12.0))
     ys = ndimage.uniform_filter1d(y, win, mode="nearest") if win > 1 else y
-    p5, p95 = np.percentile(ys, [5, 95])
+    p5, p95 = percentiles(ys, (5.0, 95.0))
     amp = 0.5 * float(p95 - p5)
     h = 0.1 * amp
     state = np.where(ys > h, 1, np.where(ys < -h, -1, 0))

@@ -168,7 +168,7 @@ from ._assessment import Evidence
 from ._detect import noise_sd
 from ._errors import ParameterError
 from ._oscillation import detect_oscillation
-from ._validate import FloatArray, dot, median
+from ._validate import FloatArray, dot, median, percentiles
 
 __all__ = ["HammersteinFit", "controller_sign", "hammerstein_test"]
 
@@ -485,7 +485,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     q = max(1, int(p // SAMPLES_PER_PERIOD))
     u = _decimate(op[n - use :], q)
     v = _decimate(pv[n - use :], q)
-    pu, pvr = np.percentile(u, [5, 50, 95]), np.percentile(v, [5, 50, 95])
+    pu, pvr = percentiles(u, (5.0, 50.0, 95.0)), percentiles(v, (5.0, 50.0, 95.0))
     su, sv = float(pu[2] - pu[0]), float(pvr[2] - pvr[0])
     if not (su > 0 and sv > 0 and math.isfinite(su) and math.isfinite(sv)):
         return _none("OP or PV does not move")

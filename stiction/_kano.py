@@ -85,7 +85,7 @@ import numpy as np
 from ._assessment import Evidence
 from ._detect import noise_sd
 from ._errors import ParameterError
-from ._validate import FloatArray, median
+from ._validate import FloatArray, median, percentiles
 
 __all__ = ["Kano", "kano_test"]
 
@@ -170,7 +170,7 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
         return _none("non-finite samples")
     # work on centred, scaled copies: thresholds are relative, so this changes no result
     # but keeps huge or tiny magnitudes away from overflow and cancellation
-    po, pp = np.percentile(op, [2, 50, 98]), np.percentile(pv, [2, 50, 98])
+    po, pp = percentiles(op, (2.0, 50.0, 98.0)), percentiles(pv, (2.0, 50.0, 98.0))
     r_op, r_pv = float(po[2] - po[0]), float(pp[2] - pp[0])
     if not (r_pv > 0 and math.isfinite(r_pv)):
         return _none("PV does not move at all: no stick-slip to see (dead sensor or valve "

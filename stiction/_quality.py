@@ -17,7 +17,7 @@ import numpy as np
 
 from ._detect import noise_sd
 from ._responding import NotResponding, not_responding
-from ._validate import FloatArray, median
+from ._validate import FloatArray, median, percentiles
 
 __all__ = ["MIN_SAMPLES", "Cleaned", "check_quality"]
 
@@ -92,7 +92,7 @@ def _levels(x: FloatArray) -> float:
         return 0.0
     span = float(np.ptp(x))
     # the quantum: a low percentile of the non-zero steps, robust to a few odd samples
-    q = float(np.percentile(steps, 5))
+    q = percentiles(steps, (5.0,))[0]
     # unquantised data has steps of every size; only call it a quantum if steps are
     # (nearly) multiples of it
     ratio = steps / q

@@ -51,7 +51,7 @@ import numpy as np
 from ._detect import noise_sd
 from ._segments import closed_rss, ragged, row_chunks
 from ._switching import Switches, find_switches
-from ._validate import FloatArray, median
+from ._validate import FloatArray, median, percentiles
 
 __all__ = ["Quantification", "quantify"]
 
@@ -204,7 +204,7 @@ def quantify(
     # consecutive jumps the same way; a poor single-curve fit is counted apart (poor_fit, see
     # the module doc): PV that creeps between jumps has not jumped twice
     sigma = noise_sd(pv)
-    p5, p95 = np.percentile(pv, [5, 95])
+    p5, p95 = percentiles(pv, (5.0, 95.0))
     swing_pv = float(p95 - p5)
     rms = np.sqrt(sw.rss / np.maximum(sw.count, 1.0))
     poor_fit = rms > np.maximum(RESID_NOISE_FACTOR * sigma, RESID_SWING_FRACTION * swing_pv)

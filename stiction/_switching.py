@@ -30,7 +30,7 @@ from scipy import optimize, signal
 
 from ._segments import closed_rss, exp_basis, ragged, row_chunks, sums2
 from ._smooth import smooth
-from ._validate import FloatArray
+from ._validate import FloatArray, percentiles
 
 __all__ = ["Switches", "departures", "find_switches", "fitted_curve"]
 
@@ -59,7 +59,7 @@ class Switches:
 def _extrema(z: FloatArray, period: float) -> np.ndarray:
     """Alternating peaks and valleys of the smoothed ``z`` (indices), at least a quarter
     period apart and with a prominence of 30 % of its range."""
-    p2, p98 = np.percentile(z, [2, 98])
+    p2, p98 = percentiles(z, (2.0, 98.0))
     span = float(p98 - p2)
     dist = max(1, int(period / 4))
     pk, _ = signal.find_peaks(z, prominence=PROMINENCE * span, distance=dist)

@@ -32,6 +32,23 @@ def median(x: NDArray[np.floating[Any]]) -> float:
     return float((p[h - 1] + p[h]) / 2.0)
 
 
+def percentiles(x: NDArray[np.floating[Any]], q: tuple[float, ...]) -> tuple[float, ...]:
+    """``np.percentile(x, q)`` (its default linear method, bit for bit) of a non-empty 1-D
+    array without NaN: one partition, without the generic machinery, which costs several
+    times the selection on a window of a few thousand samples."""
+    n = x.size
+    pos = [(n - 1) * (p / 100.0) for p in q]
+    lo = [min(math.floor(v), n - 1) for v in pos]
+    part = np.partition(x, sorted({*lo, *(min(i + 1, n - 1) for i in lo)}))
+    out = []
+    for v, i in zip(pos, lo, strict=True):
+        a, b = float(part[i]), float(part[min(i + 1, n - 1)])
+        g = v - i
+        # numpy's lerp: from the nearer end
+        out.append(b - (b - a) * (1.0 - g) if g >= 0.5 else a + (b - a) * g)
+    return tuple(out)
+
+
 def as_float_array(name: str, value: ArrayLike) -> FloatArray:
     """``value`` as a float64 array (0-d for scalars); non-numeric input names ``name``."""
     try:
