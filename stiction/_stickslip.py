@@ -45,6 +45,7 @@ import dataclasses
 import math
 
 import numpy as np
+from scipy import ndimage
 
 from ._detect import noise_sd
 from ._segments import ragged, row_chunks
@@ -62,7 +63,7 @@ MONOTONE = 0.7
 OP_NOISE = 10.0
 SAME_WAY_KICK = 0.25
 KICK_RATIO = 1.0
-FIRST_LOOK = 64  # samples back from each slip looked at at once for the stuck phase's start
+FIRST_LOOK = 64  # samples: the first chunk of the backward search for a stuck phase's start
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,45 +102,51 @@ def _means(x: FloatArray, m: int) -> tuple[FloatArray, FloatArray]:
 
 def _candidates(a: FloatArray, thr: float, m: int) -> list[int]:
     """Positions of the largest ``a`` above ``thr``, at least ``2 m`` apart (greedy, largest
-    first: each pick blocks its neighbourhood)."""
+    first: each pick blocks its neighbourhood).
+
+    In rounds rather than one point at a time: a point that ranks first among the points
+    still open within its neighbourhood is the greedy's pick whenever the greedy reaches
+    it (every point ranked above it nearby is blocked by then), so each round takes all
+    such points at once, blocks their neighbourhoods and goes on with the rest."""
     above = np.flatnonzero(a >= thr)
-    blocked = np.zeros(a.size, dtype=bool)
-    picked: list[int] = []
-    for i in above[np.argsort(-a[above], kind="stable")].tolist():
-        if not blocked[i]:
-            picked.append(i)
-            blocked[max(0, i - 2 * m + 1) : i + 2 * m] = True
-    return sorted(picked)
-
-
-def _still_since(ys: FloatArray, end: int, level: float, band: float) -> int:
-    """First index of the stretch ending at ``end`` (inclusive) in which ``ys`` stays within
-    ``band`` of ``level``; searched backwards in growing chunks, so a short stuck phase
-    costs little in a long window."""
-    hi = end + 1
-    width = 64
-    while hi > 0:
-        lo = max(0, hi - width)
-        away = np.flatnonzero(np.abs(ys[lo:hi] - level) > band)
-        if away.size:
-            return lo + int(away[-1]) + 1
-        hi, width = lo, 4 * width
-    return 0
+    if above.size == 0:
+        return []
+    size = 4 * m - 1  # a pick blocks [i - 2 m + 1, i + 2 m)
+    rank = np.full(a.size, -1.0)
+    rank[above[np.argsort(-a[above], kind="stable")]] = np.arange(above.size, 0, -1)
+    picked = np.zeros(a.size, dtype=bool)
+    while True:
+        first = (rank >= 0) & (rank == ndimage.maximum_filter1d(rank, size, mode="constant",
+                                                                 cval=-1.0))
+        if not first.any():
+            break
+        picked |= first
+        rank[ndimage.maximum_filter1d(first, size, mode="constant", cval=0)] = -1.0
+    return np.flatnonzero(picked).tolist()
 
 
 def _still_since_all(ys: FloatArray, end: np.ndarray, level: FloatArray, band: FloatArray
                      ) -> np.ndarray:
-    """:func:`_still_since` for many stretches at once: the last ``FIRST_LOOK`` samples of
-    every stretch in one array operation, the few that stay still over all of them one by
-    one from there."""
-    pos = end[:, None] + np.arange(1 - FIRST_LOOK, 1)[None, :]
-    away = (pos >= 0) & (np.abs(ys[np.maximum(pos, 0)] - level[:, None]) > band[:, None])
-    last = FIRST_LOOK - 1 - np.argmax(away[:, ::-1], axis=1)
-    start = pos[np.arange(end.size), last] + 1
-    for k in np.flatnonzero(~away.any(axis=1)).tolist():
-        first = int(end[k]) - FIRST_LOOK + 1
-        start[k] = _still_since(ys, first - 1, float(level[k]), float(band[k])) if first > 0 else 0
-    return np.asarray(start)
+    """For each stretch ending at ``end[k]`` (inclusive), the first index from which ``ys``
+    stays within ``band[k]`` of ``level[k]``: searched backwards in growing chunks, so a short
+    stuck phase costs little in a long window, each chunk one array operation over the
+    stretches whose start is still to be found."""
+    start = np.zeros(end.size, dtype=np.intp)
+    todo = np.arange(end.size)
+    hi = end + 1
+    width = FIRST_LOOK
+    while todo.size:
+        pos = hi[todo, None] + np.arange(-width, 0)[None, :]
+        away = (pos >= 0) & (np.abs(ys[np.maximum(pos, 0)] - level[todo, None])
+                             > band[todo, None])
+        found = away.any(axis=1)
+        last = width - 1 - np.argmax(away[found, ::-1], axis=1)
+        start[todo[found]] = pos[found, last] + 1
+        more = ~found & (pos[:, 0] > 0)
+        todo = todo[more]
+        hi[todo] -= width
+        width *= 4
+    return start
 
 
 def _spreads(x: FloatArray, lo: np.ndarray, hi: np.ndarray) -> FloatArray:
