@@ -35,7 +35,7 @@ import dataclasses
 import numpy as np
 
 from ._assessment import Evidence
-from ._validate import FloatArray
+from ._validate import FloatArray, median
 
 __all__ = ["FastCycle", "fast_cycle"]
 
@@ -71,7 +71,7 @@ def _kurtosis(x: FloatArray) -> float:
 
 
 def _crossing(x: FloatArray) -> float:
-    above = x > np.median(x)
+    above = x > median(x)
     return float(np.mean(above[1:] != above[:-1]))
 
 
