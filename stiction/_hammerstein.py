@@ -672,17 +672,19 @@ def _spread(target: FloatArray, ys: list[FloatArray], share: FloatArray, mask: n
     vvc = svv - sv * sv / cnt
 
     def rss(y: FloatArray) -> FloatArray:
-        sy, syy = np.add.reduceat(y, edges), np.add.reduceat(y * y, edges)
-        syv = np.add.reduceat(y * v, edges)
+        """Per period (columns), for each row of ``y``."""
+        sy, syy = np.add.reduceat(y, edges, axis=1), np.add.reduceat(y * y, edges, axis=1)
+        syv = np.add.reduceat(y * v, edges, axis=1)
         yyc, yvc = syy - sy * sy / cnt, syv - sy * sv / cnt
         g = np.where(yyc > 0, yvc / np.where(yyc > 0, yyc, 1.0), 0.0)
         g = np.where(g * sigma > 0, g, 0.0)
         return np.asarray(np.maximum(vvc - g * yvc, 0.0))
 
+    # row 0 the sticky valve at its dead time, then the linear valve at every dead time
     lag_s = int(lags[i[2]])
-    r_st = rss(ys[i[0]][i[1] + 1][start - lag_s : m - lag_s])
-    yl = ys[j[0]][0]
-    r_li = np.min([rss(yl[start - int(d) : m - int(d)]) for d in lags], axis=0)
+    shifted = np.lib.stride_tricks.sliding_window_view(ys[j[0]][0], v.size)[start - lags]
+    r = rss(np.vstack((ys[i[0]][i[1] + 1][start - lag_s : m - lag_s], shifted)))
+    r_st, r_li = r[0], np.min(r[1:], axis=0)
     ok = r_li > 0
     if not np.any(ok):
         return -math.inf

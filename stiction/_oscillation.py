@@ -109,7 +109,7 @@ def detect_oscillations(xs: Sequence[FloatArray], *, min_regularity: float = 1.0
     """:func:`detect_oscillation` of each of several signals of one length, their ACFs two
     at a time (larger batches gain nothing more, and their temporaries outgrow the
     allocator's heap: fresh pages from the OS at every call)."""
-    out = []
+    out: list[Oscillation] = []
     for i in range(0, len(xs), 2):
         r = acf(np.stack([detrend(x) for x in xs[i : i + 2]]))
         out.extend(_from_acf(row, min_regularity) for row in r)
