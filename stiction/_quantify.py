@@ -138,8 +138,15 @@ def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
     if tau is None:
         cols = np.stack((yy, yy * t, yy * yy))
     else:
+        # planes g, g^2, y, y g, y^2; the padding is zero in y already, so only g needs the mask
         g = np.exp(np.clip(-t / tau, -300.0, 300.0))
-        cols = np.stack((g, g * g, yy, yy * g, yy * yy)) * mask
+        cols = np.empty((5, *yy.shape))
+        np.multiply(g, mask, out=cols[0])
+        np.multiply(g, g, out=cols[1])
+        cols[1] *= mask
+        cols[2] = yy
+        np.multiply(yy, g, out=cols[3])
+        np.multiply(yy, yy, out=cols[4])
     pre = np.cumsum(cols, axis=2)  # sums over [0, c]
     suf = np.cumsum(cols[..., ::-1], axis=2)[..., ::-1]  # sums over [c, n)
     width = idx.shape[1] - 2 * margin
@@ -161,13 +168,13 @@ def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
         r_right, a_right, b_right = closed_rss((nf - c, *right))
         r_one, _, _ = closed_rss((nf, *one))
     two = np.where(mc, r_left + r_right, np.inf)
-    k = np.argmin(two, axis=1)[:, None]
-    rss2 = np.take_along_axis(two, k, axis=1)[:, 0]
+    rows = np.arange(two.shape[0])
+    k = np.argmin(two, axis=1)
+    rss2 = two[rows, k]
     f = (r_one[:, 0] - rss2) / 2.0 / np.maximum(rss2 / (n - 4), 1e-300)
-    if tau is None:
-        step = np.take_along_axis(np.broadcast_to(b_right - b_left, two.shape), k, axis=1)[:, 0]
-    else:
-        step = np.take_along_axis(np.broadcast_to(a_right - a_left, two.shape), k, axis=1)[:, 0]
+    # the change at the split: of the slope (ramp) or of the steady state (exponential)
+    lev_left, lev_right = (b_left, b_right) if tau is None else (a_left, a_right)
+    step = lev_right[rows, k] - lev_left[rows, k]
     return np.asarray(np.where(f >= F_SPLIT, step, np.nan))
 
 

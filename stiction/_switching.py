@@ -28,7 +28,7 @@ import math
 import numpy as np
 from scipy import optimize, signal
 
-from ._segments import closed_rss, exp_basis, ragged, row_chunks, sums2
+from ._segments import closed_rss, exp_basis, ragged, row_chunks
 from ._smooth import smooth
 from ._validate import FloatArray, percentiles
 
@@ -231,14 +231,25 @@ def _refine_rows(y: FloatArray, ends: tuple[np.ndarray, ...],
     k = lo.size
     both = np.concatenate((ref_l, ref_r))
     bulk = _interval_sums(y, np.concatenate((lo, c_hi)), np.concatenate((c_lo, hi)), both, tau)
-    cand, mc = ragged(c_lo, c_hi - c_lo)
+    lengths = c_hi - c_lo
+    cand, mc = ragged(c_lo, lengths)
     t = cand.astype(np.float64)
-    part = sums2(_basis(np.concatenate((t, t)), both, tau), np.tile(y[cand], (2, 1)))
-    part *= np.tile(mc, (2, 1))
-    sums = np.empty_like(part)
-    sums[:, :k, 0] = 0.0
-    np.cumsum(part[:, :k, :-1], axis=2, out=sums[:, :k, 1:])  # left: over [c_lo, c)
-    np.cumsum(part[:, k:, ::-1], axis=2, out=sums[:, k:, ::-1])  # right: over [c, c_hi)
+    # planes g, g^2, y, y g, y^2 of the candidates (padding zero); the counts need no sums
+    g = _basis(np.concatenate((t, t)), both, tau)
+    m2 = np.tile(mc, (2, 1))
+    part = np.empty((5, *g.shape))
+    np.multiply(g, m2, out=part[0])
+    np.multiply(part[0], part[0], out=part[1])
+    np.multiply(np.tile(y[cand], (2, 1)), m2, out=part[2])
+    np.multiply(part[2], g, out=part[3])
+    np.multiply(part[2], part[2], out=part[4])
+    sums = np.empty((6, *g.shape))
+    col = np.arange(g.shape[1])
+    sums[0, :k] = np.minimum(col[None, :], lengths[:, None])
+    sums[0, k:] = np.maximum(lengths[:, None] - col[None, :], 0)
+    sums[1:, :k, 0] = 0.0
+    np.cumsum(part[:, :k, :-1], axis=2, out=sums[1:, :k, 1:])  # left: over [c_lo, c)
+    np.cumsum(part[:, k:, ::-1], axis=2, out=sums[1:, k:, ::-1])  # right: over [c, c_hi)
     sums += bulk[..., None]
     r, a, b = closed_rss(sums)
     best = np.argmin(np.where(mc, r[:k] + r[k:], np.inf), axis=1)
