@@ -92,12 +92,11 @@ def row_chunks(lengths: np.ndarray, budget: int = CHUNK) -> list[slice]:
     ``budget`` entries (at least one row each). Row-wise fits done chunk by chunk keep their
     working set in cache: one matrix for the whole window made long windows superlinear."""
     out: list[slice] = []
-    start, width = 0, 0
-    for k, length in enumerate(lengths.tolist()):
-        w = max(width, int(length))
-        if k > start and w * (k + 1 - start) > budget:
-            out.append(slice(start, k))
-            start, w = k, int(length)
-        width = w
-    out.append(slice(start, len(lengths)))
-    return out
+    start, n = 0, lengths.size
+    while start < n:
+        # a chunk's size with each further row: nondecreasing, so a binary search
+        size = np.maximum.accumulate(lengths[start:]) * np.arange(1, n - start + 1)
+        stop = start + max(1, int(np.searchsorted(size, budget, side="right")))
+        out.append(slice(start, stop))
+        start = stop
+    return out or [slice(0, 0)]
