@@ -151,28 +151,28 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
     tiny = 1e-12 * n_k * n_k
     mean_fit = sy * sy / n_k
 
+    keep = max(1, (3 * lengths.size + 3) // 4)
+    planes = np.empty((3, yy.size))  # g, g^2, y g: one reduceat for the three sums
+    g, gg, yg = planes
+
     def total(log_tau: float) -> float:
-        g = np.exp(neg_t / math.exp(log_tau))
-        sg = np.add.reduceat(g, starts)
-        sgg = np.add.reduceat(g * g, starts)
-        syg = np.add.reduceat(yy * g, starts)
+        np.divide(neg_t, math.exp(log_tau), out=g)
+        np.exp(g, out=g)
+        np.multiply(g, g, out=gg)
+        np.multiply(yy, g, out=yg)
+        sg, sgg, syg = np.add.reduceat(planes, starts, axis=1)
         det = n_k * sgg - sg * sg
         ok = det > tiny
-        fit = np.where(
-            ok,
-            (sy * (sgg * sy - sg * syg) + syg * (n_k * syg - sg * sy)) / np.where(ok, det, 1.0),
-            mean_fit,
-        )
+        num = sy * (sgg * sy - sg * syg) + syg * (n_k * syg - sg * sy)
+        fit = num / det if ok.all() else np.where(ok, num / np.where(ok, det, 1.0), mean_fit)
         # trimmed: the worst quarter of the half cycles (a misplaced switch, a double
         # jump) must not drag the time constant
-        per = np.sort((syy - fit) / n_k)
-        return float(np.sum(per[: max(1, (3 * per.size + 3) // 4)]))
+        per = (syy - fit) / n_k
+        per.sort()
+        return float(per[:keep].sum())
 
-    res = optimize.minimize_scalar(
-        total, bounds=(math.log(0.2), math.log(20.0 * period)), method="bounded",
-        options={"xatol": 1e-3},
-    )
-    return math.exp(float(res.x))
+    log_tau = optimize.fminbound(total, math.log(0.2), math.log(20.0 * period), xtol=1e-3)
+    return math.exp(float(log_tau))
 
 
 def _basis(t: FloatArray, t0: FloatArray, tau: float | None) -> FloatArray:
