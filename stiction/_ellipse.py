@@ -237,7 +237,9 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     keep = (f >= BAND_LO * f0) & (f <= BAND_HI * f0)
     power = spec[0].real ** 2 + spec[0].imag ** 2
     share = float(np.sum(power[keep]) / max(float(np.sum(power[1:])), 1e-300))
-    spec[:, ~keep] = 0.0
+    kept = np.flatnonzero(keep)  # one stretch of bins: zero what lies either side
+    spec[:, : kept[0] if kept.size else spec.shape[1]] = 0.0
+    spec[:, kept[-1] + 1 if kept.size else 0 :] = 0.0
     filt = fft.irfft(spec, n, axis=1)
     cut = int(EDGE * p)
     uf, yf = filt[0, cut : n - cut : step], filt[1, cut : n - cut : step]

@@ -229,8 +229,7 @@ def _first_zero(s: FloatArray) -> float | None:
 def _cross_correlation(u: FloatArray, y: FloatArray, p: float) -> Horch:
     n = u.size
     nfft = fft.next_fast_len(2 * n, real=True)
-    fu = fft.rfft(u, nfft)
-    fy = fft.rfft(y, nfft)
+    fu, fy = fft.rfft(np.stack((u, y)), nfft, axis=1)  # one FFT for both: pocketfft pairs rows
     cc = fft.irfft(np.conj(fu) * fy, nfft)  # cc[k] = sum_t u[t] y[t + k], negative k wrap
     cc = cc / math.sqrt(v.dot(u, u) * v.dot(y, y))
     reach = min(math.ceil(SEARCH * p), n - 1)

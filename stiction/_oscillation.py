@@ -18,14 +18,13 @@ loops 0-2.5, the paper's limit cycles 10-100, the plant records' sticky flow loo
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from collections.abc import Sequence
 
 import numpy as np
 from scipy import fft
 
-from ._validate import FloatArray, dot, median, medians
+from ._validate import FloatArray, centred_time, dot, median, medians
 
 __all__ = ["Oscillation", "acf", "baseline", "detect_oscillation", "detect_oscillations"]
 
@@ -46,18 +45,9 @@ class Oscillation:
     significance: float = 0.0  # the ACF lobe one period out, times sqrt(n)
 
 
-@functools.lru_cache(maxsize=16)
-def _centred_time(n: int) -> tuple[FloatArray, float]:
-    """Sample times about the window's centre and their sum of squares (read-only, cached:
-    every test of a window detrends signals of its length)."""
-    t = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
-    t.flags.writeable = False
-    return t, dot(t, t)
-
-
 def detrend(x: FloatArray) -> FloatArray:
     """``x`` minus its least-squares straight line."""
-    t, tt = _centred_time(x.size)
+    t, tt = centred_time(x.size)
     mean = x.mean()
     slope = dot(t, x - mean) / tt
     return np.asarray(x - mean - slope * t)

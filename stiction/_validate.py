@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -11,6 +12,15 @@ from numpy.typing import ArrayLike, NDArray
 from ._errors import ParameterError
 
 FloatArray = NDArray[np.float64]
+
+
+@functools.lru_cache(maxsize=16)
+def centred_time(n: int) -> tuple[FloatArray, float]:
+    """Sample times about the window's centre and their sum of squares (read-only, cached:
+    every test of a window removes straight lines from signals of its length)."""
+    t = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
+    t.flags.writeable = False
+    return t, dot(t, t)
 
 
 def dot(a: NDArray[np.floating[Any]], b: NDArray[np.floating[Any]]) -> float:
@@ -125,9 +135,9 @@ def unit_detrended(x: NDArray[np.floating[Any]], *, name: str, min_samples: int
     if peak == 0.0:
         return f"{name} is constant"
     y = x / peak
-    t = np.arange(n) - (n - 1) / 2.0
+    t, tt = centred_time(n)
     y = y - y.mean()
-    y = y - (dot(t, y) / dot(t, t)) * t
+    y = y - (dot(t, y) / tt) * t
     span = float(np.max(np.abs(y)))
     if not span > FLAT:
         return f"{name} is constant"
