@@ -343,7 +343,9 @@ class _Target:
     stt: FloatArray
     sv: FloatArray
     svt: FloatArray
+    det: FloatArray  # of the offset-and-drift normal equations (1 where singular)
     svv_c: FloatArray  # variance sum after removing offset and drift
+    svv_d: FloatArray  # svv_c, 1 where 0 (the divisor of the residual shares)
 
     @classmethod
     def build(cls, v: FloatArray, lags: np.ndarray) -> _Target:
@@ -360,16 +362,17 @@ class _Target:
         cvv = np.concatenate(([0.0], np.cumsum((v * v)[::-1])))
         k = m - lags
         n = k.astype(np.float64)
-        target = cls(lags, cross, n, ct[k], ctt[k], cv[k], cvt[k], np.zeros(lags.size))
-        svv = cvv[k]
-        return dataclasses.replace(target, svv_c=svv - target.proj(cv[k], cvt[k], cv[k], cvt[k]))
+        det = n * ctt[k] - ct[k] * ct[k]
+        zero = np.zeros(lags.size)
+        target = cls(lags, cross, n, ct[k], ctt[k], cv[k], cvt[k], np.where(det > 0, det, 1.0),
+                     zero, zero)
+        svv_c = cvv[k] - target.proj(cv[k], cvt[k], cv[k], cvt[k])
+        return dataclasses.replace(target, svv_c=svv_c, svv_d=np.where(svv_c > 0, svv_c, 1.0))
 
     def proj(self, a1: FloatArray, at: FloatArray, b1: FloatArray, bt: FloatArray) -> FloatArray:
         """The part of the cross sum of a and b that offset and drift explain."""
-        det = self.n * self.stt - self.st * self.st
-        det = np.where(det > 0, det, 1.0)
         return np.asarray((self.stt * a1 * b1 - self.st * (a1 * bt + at * b1)
-                           + self.n * at * bt) / det)
+                           + self.n * at * bt) / self.det)
 
     def fit(self, y: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Residual share of variance and gain of ``target ~ g y(t - lag) + c + b t`` for each
@@ -395,8 +398,7 @@ class _Target:
         ok = syy_c > 1e-9 * np.maximum(syy, 1e-300)
         g = np.where(ok, syv_c / np.where(ok, syy_c, 1.0), 0.0)
         rss = np.maximum(self.svv_c - g * syv_c, 0.0)
-        share = rss / np.where(self.svv_c > 0, self.svv_c, 1.0)
-        return share, g
+        return rss / self.svv_d, g
 
 
 def _product(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -410,24 +412,24 @@ def _product(a: FloatArray, b: FloatArray) -> FloatArray:
 
 
 def _responses(vp: FloatArray, period: float, integrating: bool,
-               taus: FloatArray) -> list[FloatArray]:
-    """The process model's response to each valve row, for each time constant (one array for
-    integrating processes, whose target is PV's first difference)."""
+               taus: FloatArray) -> FloatArray:
+    """The process model's response to each valve row, for each time constant: shape (taus,
+    rows, samples); one time constant for integrating processes (whose target is PV's
+    first difference)."""
     if integrating:
-        return [0.5 * (vp[:, 1:] + vp[:, :-1])]
-    out = []
-    for tf in taus:
+        return np.asarray(0.5 * (vp[:, 1:] + vp[:, :-1]))[None]
+    out = np.empty((taus.size, *vp.shape))
+    for y, tf in zip(out, taus, strict=True):
         a = math.exp(-1.0 / max(tf * period, 1e-3))
-        y, _ = signal.lfilter([1.0 - a], [1.0, -a], vp, axis=1, zi=vp[:, :1] * a)
-        out.append(np.asarray(y))
+        y[:], _ = signal.lfilter([1.0 - a], [1.0, -a], vp, axis=1, zi=vp[:, :1] * a)
     return out
 
 
-def _best(target: _Target, ys: list[FloatArray]) -> tuple[FloatArray, FloatArray]:
-    """Residual shares and gains, shape (taus, rows, lags)."""
-    rows = ys[0].shape[0]
-    share, g = target.fit(np.concatenate(ys, axis=0))
-    return share.reshape(len(ys), rows, -1), g.reshape(len(ys), rows, -1)
+def _best(target: _Target, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Residual shares and gains of the responses ``ys`` (taus, rows, samples): shape
+    (taus, rows, lags)."""
+    share, g = target.fit(ys.reshape(-1, ys.shape[2]))
+    return share.reshape(*ys.shape[:2], -1), g.reshape(*ys.shape[:2], -1)
 
 
 def _median_swing(u: FloatArray, piv: np.ndarray) -> float:
@@ -527,7 +529,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     # is an instantaneous relation of either sign in OP's and PV's increments)
     dlags = lags[lags <= STICKY_MAX_LAG]
     dtarget = _Target.build(np.diff(v), dlags)
-    dshare, dgain = _best(dtarget, [np.diff(y, axis=1) for y in ys])
+    dshare, dgain = _best(dtarget, np.diff(ys, axis=2))
     proc = _process_path(gain, lags, sigma)
     dproc = _process_path(dgain, dlags, sigma)
     lin_w, lin_c = float(np.min(share[:, 0])), _masked_min(share[:, :1], proc[:, :1])
@@ -650,7 +652,7 @@ def _residual(target: FloatArray, y: FloatArray, lag: int) -> FloatArray:
     return _fit_residual(yy, vv, t)
 
 
-def _spread(target: FloatArray, ys: list[FloatArray], share: FloatArray, mask: np.ndarray,
+def _spread(target: FloatArray, ys: FloatArray, share: FloatArray, mask: np.ndarray,
             *, lags: np.ndarray, per: float, sigma: float) -> float:
     """Period by period, the process path's best sticky valve against the linear valve
     with the same time constant and any dead time up to a period (any phase), each with its
