@@ -549,7 +549,8 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     ti, ci = int(pick[0]), int(pick[1])
 
     li = np.unravel_index(int(np.argmin(share[:, 0])), share[:, 0].shape)
-    rss_lin, tau_lin, lag_lin = lin_w, float(taus[li[0]]), int(lags[li[1]])
+    rss_lin, lag_lin = lin_w, int(lags[li[1]])
+    lin_y = ys[li[0], :1]  # the linear valve's response at its time constant
     cj = int(np.argmin(sticky[ti, ci]))
     rss_st = best
     best_s, best_j = float(s_band[ci]), float(jump[ci])
@@ -575,11 +576,11 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
         proc2 = _process_path(gain2, lags, sigma) if sigma else (
             np.broadcast_to(lags <= STICKY_MAX_LAG, share2.shape))
         share2 = np.where(proc2, share2, np.inf)
-        share_l, _ = _best(target, _responses(u[None, :], per, integrating, taus_lin))
+        ys_l = _responses(u[None, :], per, integrating, taus_lin)
+        share_l, _ = _best(target, ys_l)
         lj = np.unravel_index(int(np.argmin(share_l)), share_l.shape)
         if float(share_l[lj]) <= lin_w:
-            rss_lin, tau_lin = float(share_l[lj]), float(taus_lin[lj[0]])
-            lag_lin = int(lags[lj[2]])
+            rss_lin, lin_y, lag_lin = float(share_l[lj]), ys_l[lj[0]], int(lags[lj[2]])
         if float(np.min(share2)) < best:
             rss_st = float(np.min(share2))
             near = np.argwhere(share2 <= rss_st + SIZE_TOL * max(rss_st, 1e-12))
@@ -590,8 +591,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     # the linear valve belongs to the sticky family: the process path's best of either
     rss_st = min(rss_st, lin_c)
 
-    n_eff = _effective_n(target, _responses(u[None, :], per, integrating,
-                                            np.array([tau_lin]))[0], lag_lin)
+    n_eff = _effective_n(target, lin_y, lag_lin)
     improvement = 1.0 - rss_st / rss_lin if rss_lin > 0 else 0.0
     delta_aic = (n_eff * math.log(max(rss_lin, 1e-300) / max(rss_st, 1e-300))
                  - 2.0 * EXTRA_PARAMETERS)

@@ -45,7 +45,6 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy import ndimage
 
 from ._detect import noise_sd
 from ._segments import ragged, row_chunks
@@ -104,25 +103,34 @@ def _candidates(a: FloatArray, thr: float, m: int) -> list[int]:
     """Positions of the largest ``a`` above ``thr``, at least ``2 m`` apart (greedy, largest
     first: each pick blocks its neighbourhood).
 
-    In rounds rather than one point at a time: a point that ranks first among the points
-    still open within its neighbourhood is the greedy's pick whenever the greedy reaches
-    it (every point ranked above it nearby is blocked by then), so each round takes all
-    such points at once, blocks their neighbourhoods and goes on with the rest."""
+    Points ``2 m`` or more apart never block each other, so the points above ``thr`` fall
+    into independent clusters; a cluster narrower than ``2 m`` (a slip's few samples) gets
+    one pick, its first maximum, and only wider ones run the greedy."""
     above = np.flatnonzero(a >= thr)
     if above.size == 0:
         return []
-    size = 4 * m - 1  # a pick blocks [i - 2 m + 1, i + 2 m)
-    rank = np.full(a.size, -1.0)
-    rank[above[np.argsort(-a[above], kind="stable")]] = np.arange(above.size, 0, -1)
-    picked = np.zeros(a.size, dtype=bool)
-    while True:
-        first = (rank >= 0) & (rank == ndimage.maximum_filter1d(rank, size, mode="constant",
-                                                                 cval=-1.0))
-        if not first.any():
-            break
-        picked |= first
-        rank[ndimage.maximum_filter1d(first, size, mode="constant", cval=0)] = -1.0
-    return np.flatnonzero(picked).tolist()
+    vals = a[above]
+    starts = np.concatenate(([0], np.flatnonzero(above[1:] - above[:-1] >= 2 * m) + 1))
+    ends = np.append(starts[1:], above.size)
+    top = np.maximum.reduceat(vals, starts)
+    cluster = np.repeat(np.arange(starts.size), ends - starts)
+    at_top = np.flatnonzero(vals == top[cluster])
+    first = at_top[np.concatenate(([True], cluster[at_top[1:]] != cluster[at_top[:-1]]))]
+    picked = above[first].tolist()
+    for c in np.flatnonzero(above[ends - 1] - above[starts] >= 2 * m).tolist():
+        picked.remove(int(above[first[c]]))
+        picked.extend(_greedy(above[starts[c] : ends[c]], vals[starts[c] : ends[c]], m))
+    return sorted(picked)
+
+
+def _greedy(at: np.ndarray, vals: FloatArray, m: int) -> list[int]:
+    """:func:`_candidates` within one cluster ``at`` (positions, ascending) of values
+    ``vals``."""
+    picked: list[int] = []
+    for i in at[np.argsort(-vals, kind="stable")].tolist():
+        if all(abs(i - j) >= 2 * m for j in picked):
+            picked.append(i)
+    return picked
 
 
 def _still_since_all(ys: FloatArray, end: np.ndarray, level: FloatArray, band: FloatArray
