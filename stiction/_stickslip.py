@@ -251,5 +251,5 @@ def _episodes(op: FloatArray, pv: FloatArray, m: int, noise: tuple[float, float,
     tv = hop.sum(axis=1)
     k = k[(tv > 0) & (np.abs(travel[k]) >= MONOTONE * tv)]
     k = k[_spreads(ys, lo[k], end[k] + 1) <= STILL_SPREAD * np.abs(d[k])]
-    return [Episode(int(at[j]), float(d[j]), float(travel[j]), float(step[j]), int(stuck[j]))
-            for j in k.tolist()]
+    return [Episode(*fields) for fields in zip(at[k].tolist(), d[k].tolist(), travel[k].tolist(),
+                                               step[k].tolist(), stuck[k].tolist(), strict=True)]
