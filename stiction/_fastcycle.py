@@ -66,8 +66,8 @@ class FastCycle:
 def _kurtosis(x: FloatArray) -> float:
     y = x - x.mean()
     y2 = y * y
-    v = float(np.mean(y2))
-    return float(np.mean(y2 * y2)) / (v * v) - 3.0 if v > 0 else 0.0
+    v = float(y2.mean())
+    return float((y2 * y2).mean()) / (v * v) - 3.0 if v > 0 else 0.0
 
 
 def _crossing(x: FloatArray) -> float:

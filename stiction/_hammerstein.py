@@ -293,7 +293,7 @@ def sticky_valve(u: FloatArray, piv: np.ndarray, s_band: FloatArray,
     seg[piv[1:-1] + 1] = 1
     seg = np.cumsum(seg)
     st = s[seg]
-    big = 4.0 * (float(np.max(np.abs(u))) + 1.0)
+    big = 4.0 * (float(np.abs(u).max()) + 1.0)
     run_ext = st * (np.maximum.accumulate(st * u + big * seg) - big * seg)
     nc, nk = s_band.size, s.size
     col = np.arange(1, nk + 1)
@@ -468,7 +468,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     if op.shape != pv.shape or op.ndim != 1:
         raise ParameterError("pv", f"must be 1-D and as long as op ({pv.shape} vs {op.shape})")
     n = op.size
-    if n < 4 * SAMPLES_PER_PERIOD or not (np.all(np.isfinite(op)) and np.all(np.isfinite(pv))):
+    if n < 4 * SAMPLES_PER_PERIOD or not (np.isfinite(op).all() and np.isfinite(pv).all()):
         return _none(f"window too short or not finite ({n} samples)")
     if p is None:
         for x in (op, pv):
@@ -513,7 +513,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
         v = np.diff(v)
     lags = DEAD_GRID[v.size // 4 > DEAD_GRID]
     target = _Target.build(v, lags)
-    if not np.all(target.svv_c > 0):
+    if not (target.svv_c > 0).all():
         return _none("PV does not move")
 
     s_band = np.repeat(S_GRID * swing, J_GRID.size)
@@ -532,7 +532,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     dshare, dgain = _best(dtarget, np.diff(ys, axis=2))
     proc = _process_path(gain, lags, sigma)
     dproc = _process_path(dgain, dlags, sigma)
-    lin_w, lin_c = float(np.min(share[:, 0])), _masked_min(share[:, :1], proc[:, :1])
+    lin_w, lin_c = float(share[:, 0].min()), _masked_min(share[:, :1], proc[:, :1])
     dlin_c = _masked_min(dshare[:, :1], dproc[:, :1])
     dst = _masked_min(dshare, dproc)
 
@@ -540,18 +540,18 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     # (the band trades off against the dead time - a smaller band slips earlier, a longer
     # dead time delays PV as much: of the fits near the best, take the widest band)
     sticky = np.where(proc[:, 1:], share[:, 1:], np.inf)
-    best = float(np.min(sticky))
+    best = float(sticky.min())
     if not math.isfinite(best):  # no process-path fit (sign unknown): the plain best
         sticky = share[:, 1:, : int(np.count_nonzero(lags <= STICKY_MAX_LAG))]
-        best = float(np.min(sticky))
+        best = float(sticky.min())
     near = np.argwhere(sticky <= best + SIZE_TOL * max(best, 1e-12))
     pick = near[np.lexsort((jump[near[:, 1]], -s_band[near[:, 1]]))[0]]
     ti, ci = int(pick[0]), int(pick[1])
 
-    li = np.unravel_index(int(np.argmin(share[:, 0])), share[:, 0].shape)
+    li = np.unravel_index(int(share[:, 0].argmin()), share[:, 0].shape)
     rss_lin, lag_lin = lin_w, int(lags[li[1]])
     lin_y = ys[li[0], :1]  # the linear valve's response at its time constant
-    cj = int(np.argmin(sticky[ti, ci]))
+    cj = int(sticky[ti, ci].argmin())
     rss_st = best
     best_s, best_j = float(s_band[ci]), float(jump[ci])
     g, tau_f, lag = float(gain[ti, ci + 1, cj]), float(taus[ti]), int(lags[cj])
@@ -578,11 +578,11 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
         share2 = np.where(proc2, share2, np.inf)
         ys_l = _responses(u[None, :], per, integrating, taus_lin)
         share_l, _ = _best(target, ys_l)
-        lj = np.unravel_index(int(np.argmin(share_l)), share_l.shape)
+        lj = np.unravel_index(int(share_l.argmin()), share_l.shape)
         if float(share_l[lj]) <= lin_w:
             rss_lin, lin_y, lag_lin = float(share_l[lj]), ys_l[lj[0]], int(lags[lj[2]])
-        if float(np.min(share2)) < best:
-            rss_st = float(np.min(share2))
+        if float(share2.min()) < best:
+            rss_st = float(share2.min())
             near = np.argwhere(share2 <= rss_st + SIZE_TOL * max(rss_st, 1e-12))
             sj = tuple(near[np.lexsort((j2[near[:, 1]], -s2[near[:, 1]]))[0]])
             best_s, best_j = float(s2[sj[1]]), float(j2[sj[1]])
@@ -660,10 +660,10 @@ def _spread(target: FloatArray, ys: FloatArray, share: FloatArray, mask: np.ndar
     relative improvements (-inf when either fit is missing)."""
     st = np.where(mask[:, 1:], share[:, 1:], np.inf)
     li = np.where(mask[:, :1], share[:, :1], np.inf)
-    if not (np.isfinite(np.min(st)) and np.isfinite(np.min(li))):
+    if not (np.isfinite(st.min()) and np.isfinite(li.min())):
         return -math.inf
-    i = np.unravel_index(int(np.argmin(st)), st.shape)
-    j = np.unravel_index(int(np.argmin(li)), li.shape)
+    i = np.unravel_index(int(st.argmin()), st.shape)
+    j = np.unravel_index(int(li.argmin()), li.shape)
     start = int(lags.max())
     m = target.size
     v = target[start:]
@@ -686,9 +686,9 @@ def _spread(target: FloatArray, ys: FloatArray, share: FloatArray, mask: np.ndar
     lag_s = int(lags[i[2]])
     shifted = np.lib.stride_tricks.sliding_window_view(ys[j[0]][0], v.size)[start - lags]
     r = rss(np.vstack((ys[i[0]][i[1] + 1][start - lag_s : m - lag_s], shifted)))
-    r_st, r_li = r[0], np.min(r[1:], axis=0)
+    r_st, r_li = r[0], r[1:].min(axis=0)
     ok = r_li > 0
-    if not np.any(ok):
+    if not ok.any():
         return -math.inf
     return median(1.0 - r_st[ok] / r_li[ok])
 

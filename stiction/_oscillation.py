@@ -48,7 +48,7 @@ class Oscillation:
 def detrend(x: FloatArray) -> FloatArray:
     """``x`` minus its least-squares straight line."""
     t, tt = centred_time(x.size)
-    mean = x.mean()
+    mean = np.add.reduce(x) / x.size  # x.mean(), without its Python layer
     slope = dot(t, x - mean) / tt
     return np.asarray(x - mean - slope * t)
 
@@ -112,7 +112,7 @@ def _from_acf(r: FloatArray, min_regularity: float) -> Oscillation:
     max_lag = (2 * n) // 3
     seg = r[1:max_lag]
     sgn = np.signbit(seg)
-    idx = np.flatnonzero(sgn[1:] != sgn[:-1])[:MAX_CROSSINGS]
+    idx = (sgn[1:] != sgn[:-1]).nonzero()[0][:MAX_CROSSINGS]
     if idx.size < MIN_CROSSINGS:
         return Oscillation(False, None, 0.0,
                            f"no regular oscillation: the ACF crosses zero only {idx.size} times "
@@ -121,15 +121,16 @@ def _from_acf(r: FloatArray, min_regularity: float) -> Oscillation:
     a, b = seg[idx], seg[idx + 1]
     z = idx + 1 + a / (a - b)
     periods = z[2:] - z[:-2]
-    tp = float(periods.mean())
-    sd = math.sqrt(float(np.mean(np.square(periods - tp))))  # periods.std(), without its overhead
+    tp = float(np.add.reduce(periods) / periods.size)
+    dev = periods - tp
+    sd = math.sqrt(float(np.add.reduce(dev * dev) / dev.size))  # periods.std()
     reg = float("inf") if sd == 0 else tp / (3.0 * sd)
     if reg <= min_regularity:
         return Oscillation(False, tp, reg,
                            f"no regular oscillation: ACF zero crossings irregular "
                            f"(regularity {reg:.2f} <= {min_regularity:g})")
     lobe = seg[int(np.ceil(z[1])) - 1 : int(np.floor(z[2]))]
-    height = float(np.max(np.abs(lobe))) * np.sqrt(n) if lobe.size else 0.0
+    height = float(np.abs(lobe).max()) * math.sqrt(n) if lobe.size else 0.0
     if height < SIGNIFICANCE:
         return Oscillation(False, None, reg,
                            f"no significant oscillation: the ACF one period out is "

@@ -82,9 +82,9 @@ class Quantification:
 def _mean(x: FloatArray) -> float:
     """10 %-trimmed mean (as ``scipy.stats.trim_mean``: ``int(TRIM n)`` cut from each end)."""
     if x.size < 5:
-        return float(np.mean(x))
+        return float(x.mean())
     cut = int(TRIM * x.size)
-    return float(np.mean(np.sort(x)[cut : x.size - cut]))
+    return float((np.sort(x)[cut : x.size - cut]).mean())
 
 
 def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
@@ -95,7 +95,7 @@ def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
     seg = op[win]
     t = np.arange(-5, 1) + 2.5
     slope = (seg - seg.mean(axis=1, keepdims=True)) @ t / float(t @ t)
-    return 0.5 * float(np.mean(np.abs(slope)))
+    return 0.5 * float(np.abs(slope).mean())
 
 
 def _second_steps(
@@ -169,7 +169,7 @@ def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
         r_one, _, _ = closed_rss((nf, *one))
     two = np.where(mc, r_left + r_right, np.inf)
     rows = np.arange(two.shape[0])
-    k = np.argmin(two, axis=1)
+    k = two.argmin(axis=1)
     rss2 = two[rows, k]
     f = (r_one[:, 0] - rss2) / 2.0 / np.maximum(rss2 / (n - 4), 1e-300)
     # the change at the split: of the slope (ramp) or of the steady state (exponential)

@@ -56,22 +56,22 @@ def _gcv_s(dct_y: FloatArray, lam2: FloatArray, near: float | None = None) -> fl
     y2 = dct_y * dct_y
     if near is None:
         coarse = np.arange(0, _LAST + 1, _COARSE)
-        centre = int(coarse[int(np.argmin(_gcv(y2, lam2, _LOG_S_GRID[coarse])))])
+        centre = int(coarse[int(_gcv(y2, lam2, _LOG_S_GRID[coarse]).argmin())])
         idx = np.arange(max(0, centre - _COARSE + 1), min(_LAST, centre + _COARSE - 1) + 1)
     else:
         idx = np.flatnonzero(np.abs(_LOG_S_GRID - math.log10(near)) <= 2.0)
         if idx.size < 3:
             idx = np.arange(_LAST + 1)
     g = _gcv(y2, lam2, _LOG_S_GRID[idx])
-    i = int(np.argmin(g))
+    i = int(g.argmin())
     if i == 0 and idx[0] > 0:  # the minimum lies further down: try the rest below
         more = np.arange(idx[0])
         idx, g = np.concatenate((more, idx)), np.concatenate((_gcv(y2, lam2, _LOG_S_GRID[more]), g))
-        i = int(np.argmin(g))
+        i = int(g.argmin())
     elif i == idx.size - 1 and idx[-1] < _LAST:  # further up
         more = np.arange(idx[-1] + 1, _LAST + 1)
         idx, g = np.concatenate((idx, more)), np.concatenate((g, _gcv(y2, lam2, _LOG_S_GRID[more])))
-        i = int(np.argmin(g))
+        i = int(g.argmin())
     x = float(_LOG_S_GRID[idx[i]])
     if 0 < i < g.size - 1:
         g0, g1, g2 = float(g[i - 1]), float(g[i]), float(g[i + 1])

@@ -148,7 +148,7 @@ def _still_since_all(ys: FloatArray, end: np.ndarray, level: FloatArray, band: F
         away = (pos >= 0) & (np.abs(ys[np.maximum(pos, 0)] - level[todo, None])
                              > band[todo, None])
         found = away.any(axis=1)
-        last = width - 1 - np.argmax(away[found, ::-1], axis=1)
+        last = width - 1 - away[found, ::-1].argmax(axis=1)
         start[todo[found]] = pos[found, last] + 1
         more = ~found & (pos[:, 0] > 0)
         todo = todo[more]
@@ -183,7 +183,7 @@ def _turns(us: FloatArray, lo: np.ndarray, end: np.ndarray) -> np.ndarray:
         rows = order[sl]
         idx, mask = ragged(lo[rows], n[rows])
         far = np.where(mask, np.abs(us[end[rows], None] - us[idx]), -1.0)
-        out[rows] = lo[rows] + np.argmax(far, axis=1)
+        out[rows] = lo[rows] + far.argmax(axis=1)
     return out
 
 
@@ -199,7 +199,7 @@ def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
         new = _episodes(op, pv, m, noise)
         if taken.size and new:
             at = np.array([e.at for e in new])
-            clash = np.any(np.abs(taken[None, :] - at[:, None]) < 2 * m, axis=1)
+            clash = (np.abs(taken[None, :] - at[:, None]) < 2 * m).any(axis=1)
             new = [e for e, c in zip(new, clash.tolist(), strict=True) if not c]
         found.extend(new)
     found.sort(key=lambda e: e.at)

@@ -104,7 +104,7 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
     sign[-1] = 1.0
     idx, mask = ragged(ext, nxt - ext + 1)
     near = mask & (sign[:, None] * (ze[:, None] - z[idx]) <= (0.05 * swing)[:, None])
-    pos = idx.shape[1] - 1 - np.argmax(near[:, ::-1], axis=1)  # last such sample
+    pos = idx.shape[1] - 1 - near[:, ::-1].argmax(axis=1)  # last such sample
     keep = np.ones(ext.size, dtype=bool)
     keep[-1] = pos[-1] != nxt[-1] - ext[-1]  # PV never leaves the last plateau: no onset
     return np.asarray((ext + pos)[keep] * m + m // 2, dtype=np.intp)
@@ -252,7 +252,7 @@ def _refine_rows(y: FloatArray, ends: tuple[np.ndarray, ...],
     np.cumsum(part[:, k:, ::-1], axis=2, out=sums[1:, k:, ::-1])  # right: over [c, c_hi)
     sums += bulk[..., None]
     r, a, b = closed_rss(sums)
-    best = np.argmin(np.where(mc, r[:k] + r[k:], np.inf), axis=1)
+    best = np.where(mc, r[:k] + r[k:], np.inf).argmin(axis=1)
     rows = np.arange(k)
     near = cand[rows, best].astype(np.float64)
     return _meet((a[rows, best], b[rows, best], ref_l),
@@ -289,8 +289,8 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     kinks = departures(pv, period)
     if kinks.size < 3:
         return None
-    scale = float(np.std(pv)) or 1.0
-    y = (pv - float(np.mean(pv))) / scale
+    scale = float(pv.std()) or 1.0
+    y = (pv - float(pv.mean())) / scale
     guard = max(2, round(0.02 * period))
     tau: float | None = None
     if not integrating:
@@ -317,7 +317,7 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     c = np.floor(onsets).astype(np.intp)
     bounds = np.column_stack((c[:-1] + 1, c[1:] + 1))
     a, b, r, cnt = _segment_sums(y, bounds, onsets[:-1], tau)
-    mean = float(np.mean(pv))
+    mean = float(pv.mean())
     return Switches(onsets, a * scale + mean, b * scale, r * scale * scale, cnt, tau)
 
 

@@ -47,7 +47,8 @@ def order_statistics(x: NDArray[np.floating[Any]], ks: set[int]) -> dict[int, fl
             out[k] = float(head.max())
             exact = False
         else:
-            part = np.partition(head, k)
+            part = head.copy()
+            part.partition(k)
             out[k] = float(part[k])
             head, exact = part[:k], True
     return out
@@ -60,7 +61,7 @@ def median(x: NDArray[np.floating[Any]]) -> float:
         return float("nan")
     h = x.size // 2
     if x.size % 2:
-        return float(np.partition(x, h)[h])
+        return order_statistics(x, {h})[h]
     s = order_statistics(x, {h - 1, h})
     return (s[h - 1] + s[h]) / 2.0
 
@@ -103,14 +104,14 @@ def as_float_array(name: str, value: ArrayLike) -> FloatArray:
 
 def finite(name: str, value: ArrayLike) -> FloatArray:
     arr = as_float_array(name, value)
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ParameterError(name, f"must be finite, was {_show(value)}")
     return arr
 
 
 def non_negative(name: str, value: ArrayLike) -> FloatArray:
     arr = finite(name, value)
-    if np.any(arr < 0):
+    if (arr < 0).any():
         raise ParameterError(name, f"must be >= 0, was {_show(value)}")
     return arr
 
@@ -152,16 +153,16 @@ def unit_detrended(x: NDArray[np.floating[Any]], *, name: str, min_samples: int
     n = x.size
     if n < min_samples:
         return f"record too short to tell: {n} samples"
-    if not np.all(np.isfinite(x)):
+    if not np.isfinite(x).all():
         return f"{name} has non-finite samples"
-    peak = float(np.max(np.abs(x)))
+    peak = float(np.abs(x).max())
     if peak == 0.0:
         return f"{name} is constant"
     y = x / peak
     t, tt = centred_time(n)
     y = y - y.mean()
     y = y - (dot(t, y) / tt) * t
-    span = float(np.max(np.abs(y)))
+    span = float(np.abs(y).max())
     if not span > FLAT:
         return f"{name} is constant"
     return np.asarray(y / span, dtype=np.float64)
