@@ -53,7 +53,7 @@ import numpy as np
 
 from ._assessment import Evidence
 from ._bicoherence import bicoherence_test
-from ._detect import NO_STICTION_SI, STICTION_SI, stiction_index
+from ._detect import NO_STICTION_SI, STICTION_SI, noise_sd, stiction_index
 from ._ellipse import EllipseFit, ellipse_band
 from ._fastcycle import fast_cycle
 from ._hammerstein import HammersteinFit, hammerstein_test
@@ -203,6 +203,7 @@ class Findings:
     kano: Kano
     hammerstein: HammersteinFit
     stick_slip: StickSlip
+    noise: tuple[float, float]  # white-noise SDs of OP and PV (noise_sd), for the sizing too
 
     def vote(self, test: str) -> int:
         return next(e.vote for e in self.evidence if e.test == test)
@@ -216,9 +217,10 @@ def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool, t
     no_cycle = "no cycle to look at"
     ell = (ellipse_band(cycle.op.x, cycle.pv.x, period=horch_period, integrating=integrating)
            if horch_period is not None else None)
-    kano = kano_test(op, pv, period=horch_period)
+    noise = (noise_sd(op), noise_sd(pv))  # once for the tests that need them
+    kano = kano_test(op, pv, period=horch_period, noise=noise)
     ham = hammerstein_test(op, pv, ts=ts, period=horch_period, integrating=integrating)
-    ss = stick_slip(op, pv)
+    ss = stick_slip(op, pv, noise=noise)
     found = {
         "ellipse": ell.evidence() if ell is not None else Evidence("ellipse", None, 0, no_cycle),
         "kano": kano.evidence(),
@@ -234,7 +236,7 @@ def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool, t
                   else Evidence("horch", None, 0, "no regular cycle to correlate")),
         "stick_slip": _stick_slip(ss),
     }
-    return Findings(tuple(found[name] for name in TESTS), ell, kano, ham, ss)
+    return Findings(tuple(found[name] for name in TESTS), ell, kano, ham, ss, noise)
 
 
 def gather_for_calibration(op: np.ndarray, pv: np.ndarray, *, ts: float,

@@ -153,11 +153,13 @@ def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
-def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) -> Kano:
+def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None,
+              noise: tuple[float, float] | None = None) -> Kano:
     """Kano et al. (2004) stuck-interval test on one window (see the module doc).
 
     ``op``, ``pv``: equal-length finite 1-D arrays; ``period``: the oscillation period in
-    samples, when known (sets the averaging scale)."""
+    samples, when known (sets the averaging scale); ``noise``: the white-noise SDs of OP and
+    PV (:func:`~stiction._detect.noise_sd`), when the caller has them."""
     m = _scale(period)
     op = np.asarray(op, dtype=np.float64)
     pv = np.asarray(pv, dtype=np.float64)
@@ -179,7 +181,8 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
         return _none("OP does not move: nothing to be stuck against")
     u = (op - po[1]) / r_op
     y = (pv - 0.5 * (pp[0] + pp[2])) / r_pv  # centred on PV's mid-range
-    sd_u, sd_y = noise_sd(u), noise_sd(y)
+    # the noise SD scales with the signal: of the scaled copies, that of the raw signals
+    sd_u, sd_y = (noise[0] / r_op, noise[1] / r_pv) if noise else (noise_sd(u), noise_sd(y))
     cu = np.concatenate(([0.0], np.cumsum(u)))
     cy = np.concatenate(([0.0], np.cumsum(y)))
     t = np.arange(m, n - m + 1)

@@ -188,8 +188,10 @@ def quantify(
     delay: float,
     integrating: bool,
     k: float,
+    pv_noise: float | None = None,
 ) -> Quantification:
-    """Estimate fd, fs (OP units) from a window already judged sticky."""
+    """Estimate fd, fs (OP units) from a window already judged sticky; ``pv_noise``: PV's
+    white-noise SD (:func:`~stiction._detect.noise_sd`), when the caller has it."""
     sw = find_switches(pv, period, integrating=integrating)
     if sw is None or sw.onsets.size < 3:
         return Quantification(reason="fewer than three PV switching points found")
@@ -210,7 +212,7 @@ def quantify(
     # multi-jump check: a significant second step the same way inside a half cycle, or two
     # consecutive jumps the same way; a poor single-curve fit is counted apart (poor_fit, see
     # the module doc): PV that creeps between jumps has not jumped twice
-    sigma = noise_sd(pv)
+    sigma = noise_sd(pv) if pv_noise is None else pv_noise
     p5, p95 = percentiles(pv, (5.0, 95.0))
     swing_pv = float(p95 - p5)
     rms = np.sqrt(sw.rss / np.maximum(sw.count, 1.0))

@@ -187,16 +187,19 @@ def _turns(us: FloatArray, lo: np.ndarray, end: np.ndarray) -> np.ndarray:
     return out
 
 
-def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
-    """Find stick-slip episodes in a window of OP and PV (equal-length, finite)."""
+def stick_slip(op: FloatArray, pv: FloatArray, *, noise: tuple[float, float] | None = None
+               ) -> StickSlip:
+    """Find stick-slip episodes in a window of OP and PV (equal-length, finite); ``noise``:
+    the white-noise SDs of OP and PV (:func:`~stiction._detect.noise_sd`), when the caller
+    has them."""
     found: list[Episode] = []
     if op.size < 5 * M + 2:
         return StickSlip((), True)
     p2, p98 = percentiles(pv, (2.0, 98.0))
-    noise = (noise_sd(pv), noise_sd(op), float(p98 - p2))
+    sd_op, sd_pv = noise or (noise_sd(op), noise_sd(pv))
     for m in SCALES:
         taken = np.array([f.at for f in found])
-        new = _episodes(op, pv, m, noise)
+        new = _episodes(op, pv, m, (sd_pv, sd_op, float(p98 - p2)))
         if taken.size and new:
             at = np.array([e.at for e in new])
             clash = (np.abs(taken[None, :] - at[:, None]) < 2 * m).any(axis=1)
