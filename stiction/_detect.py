@@ -166,17 +166,18 @@ def _sse_pair(y: FloatArray, ys: FloatArray, span: tuple[FloatArray, FloatArray]
     k = np.where(mask, sgn[:, None] * ys[idx], -np.inf).argmax(axis=1)[:, None]
     up = np.minimum(np.maximum(np.take_along_axis(u, k, axis=1), 0.05), 0.95)
     tri = np.where(u <= up, u / up, (1.0 - u) / (1.0 - up))
-    return (float(_sse_rows(yc, sine, mask, nf).sum()),
-            float(_sse_rows(yc, tri, mask, nf).sum()))
+    sse = _sse_rows(yc, np.stack((sine, tri)), mask, nf)
+    return float(sse[0].sum()), float(sse[1].sum())
 
 
 def _sse_rows(yc: FloatArray, basis: FloatArray, mask: np.ndarray, n: FloatArray) -> FloatArray:
     """Per row, the residual sum of squares of y ~ c + a * basis over the masked entries,
-    from the centred rows ``yc`` of y (centred first, so the closed form does not cancel)."""
+    from the centred rows ``yc`` of y (centred first, so the closed form does not cancel);
+    ``basis`` stacks several bases (axis 0), each fitted on its own."""
     b = np.where(mask, basis, 0.0)
-    bc = np.where(mask, b - (b.sum(axis=1) / n)[:, None], 0.0)
-    den = np.einsum("ij,ij->i", bc, bc)
-    num = np.einsum("ij,ij->i", bc, yc)
+    bc = np.where(mask, b - (b.sum(axis=2) / n)[..., None], 0.0)
+    den = np.einsum("kij,kij->ki", bc, bc)
+    num = np.einsum("kij,ij->ki", bc, yc)
     a = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-    r = yc - a[:, None] * bc
-    return np.asarray(np.einsum("ij,ij->i", r, r))
+    r = yc - a[..., None] * bc
+    return np.asarray(np.einsum("kij,kij->ki", r, r))
