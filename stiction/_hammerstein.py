@@ -362,17 +362,15 @@ class _Target:
         cvv = np.concatenate(([0.0], np.cumsum((v * v)[::-1])))
         k = m - lags
         n = k.astype(np.float64)
-        det = n * ctt[k] - ct[k] * ct[k]
-        zero = np.zeros(lags.size)
-        target = cls(lags, cross, n, ct[k], ctt[k], cv[k], cvt[k], np.where(det > 0, det, 1.0),
-                     zero, zero)
-        svv_c = cvv[k] - target.proj(cv[k], cvt[k], cv[k], cvt[k])
-        return dataclasses.replace(target, svv_c=svv_c, svv_d=np.where(svv_c > 0, svv_c, 1.0))
+        st, stt, sv, svt = ct[k], ctt[k], cv[k], cvt[k]
+        det = n * stt - st * st
+        det = np.where(det > 0, det, 1.0)
+        svv_c = cvv[k] - _proj((n, st, stt, det), sv, svt, sv, svt)
+        return cls(lags, cross, n, st, stt, sv, svt, det, svv_c, np.where(svv_c > 0, svv_c, 1.0))
 
     def proj(self, a1: FloatArray, at: FloatArray, b1: FloatArray, bt: FloatArray) -> FloatArray:
         """The part of the cross sum of a and b that offset and drift explain."""
-        return np.asarray((self.stt * a1 * b1 - self.st * (a1 * bt + at * b1)
-                           + self.n * at * bt) / self.det)
+        return _proj((self.n, self.st, self.stt, self.det), a1, at, b1, bt)
 
     def fit(self, y: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Residual share of variance and gain of ``target ~ g y(t - lag) + c + b t`` for each
@@ -399,6 +397,13 @@ class _Target:
         g = np.where(ok, syv_c / np.where(ok, syy_c, 1.0), 0.0)
         rss = np.maximum(self.svv_c - g * syv_c, 0.0)
         return rss / self.svv_d, g
+
+
+def _proj(nuisance: tuple[FloatArray, FloatArray, FloatArray, FloatArray], a1: FloatArray,
+          at: FloatArray, b1: FloatArray, bt: FloatArray) -> FloatArray:
+    """:meth:`_Target.proj` from the nuisance sums ``(n, st, stt, det)``."""
+    n, st, stt, det = nuisance
+    return np.asarray((stt * a1 * b1 - st * (a1 * bt + at * b1) + n * at * bt) / det)
 
 
 def _product(a: FloatArray, b: FloatArray) -> FloatArray:
