@@ -147,34 +147,40 @@ def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
         cols[2] = yy
         np.multiply(yy, g, out=cols[3])
         np.multiply(yy, yy, out=cols[4])
-    pre = np.cumsum(cols, axis=2)  # sums over [0, c]
-    suf = np.cumsum(cols[..., ::-1], axis=2)[..., ::-1]  # sums over [c, n)
-    width = idx.shape[1] - 2 * margin
+    # side[:, 0]: sums over [0, c] (prefix); side[:, 1]: over [c + 1, n) (suffix, one column
+    # on, so that both sides of the split before column c + 1 share an index); one
+    # closed-form fit for both
+    w_all = idx.shape[1]
+    side = np.empty((cols.shape[0], 2, *yy.shape))
+    np.cumsum(cols, axis=2, out=side[:, 0])
+    np.cumsum(cols[..., :0:-1], axis=2, out=side[:, 1, :, w_all - 2 :: -1])
+    side[:, 1, :, -1] = 0.0
+    width = w_all - 2 * margin
     c = np.arange(margin, margin + width, dtype=np.float64)[None, :]  # split: [0, c), [c, n)
     mc = c < nf - margin
-    left = pre[..., margin - 1 : margin - 1 + width]
-    right = suf[..., margin : margin + width]
-    one = pre[..., -1:]  # padding adds zeros: the sums over [0, n)
+    sums = side[..., margin - 1 : margin - 1 + width]
+    one = side[:, 0, :, -1:]  # padding adds zeros: the sums over [0, n)
+    count = np.stack(np.broadcast_arrays(c, nf - c))
     if tau is None:
         t1 = c * ((c - 1.0) / 2.0 - h)  # sum of t over [0, c)
         t2 = (c - 1.0) * c * (2.0 * c - 1.0) / 6.0 - h * (c - 1.0) * c + c * h * h
         t1_all = -h  # over [0, n): n ((n - 1) / 2 - h)
         t2_all = (nf - 1.0) * nf * (2.0 * nf - 1.0) / 6.0 - h * (nf - 1.0) * nf + nf * h * h
-        r_left, a_left, b_left = closed_rss((c, t1, t2, *left))
-        r_right, a_right, b_right = closed_rss((nf - c, t1_all - t1, t2_all - t2, *right))
+        r, a, b = closed_rss((count, np.stack(np.broadcast_arrays(t1, t1_all - t1)),
+                              np.stack(np.broadcast_arrays(t2, t2_all - t2)), *sums))
         r_one, _, _ = closed_rss((nf, t1_all, t2_all, *one))
     else:
-        r_left, a_left, b_left = closed_rss((c, *left))
-        r_right, a_right, b_right = closed_rss((nf - c, *right))
+        r, a, b = closed_rss((count, *sums))
         r_one, _, _ = closed_rss((nf, *one))
+    r_left, r_right = r
     two = np.where(mc, r_left + r_right, np.inf)
     rows = np.arange(two.shape[0])
     k = two.argmin(axis=1)
     rss2 = two[rows, k]
     f = (r_one[:, 0] - rss2) / 2.0 / np.maximum(rss2 / (n - 4), 1e-300)
     # the change at the split: of the slope (ramp) or of the steady state (exponential)
-    lev_left, lev_right = (b_left, b_right) if tau is None else (a_left, a_right)
-    step = lev_right[rows, k] - lev_left[rows, k]
+    lev = b if tau is None else a
+    step = lev[1, rows, k] - lev[0, rows, k]
     return np.asarray(np.where(f >= F_SPLIT, step, np.nan))
 
 
