@@ -196,7 +196,7 @@ def analyze_details(
     quant: Quantification | None = None
     if force_quantify and _limit_cycle(cycle, op_c.size):
         quant = quantify(op_c, pv_c, period=cycle.period or 0.0, ts=ts_, kp=kp_,
-                         delay=delay_, integrating=integrating, k=k_)
+                         delay=delay_, integrating=integrating, k=k_, pv_noise=found.noise[1])
 
     if conf < STICTION_CONFIDENCE:
         verdict, reason = _not_stiction(cycle, found.evidence, conf)
@@ -297,7 +297,7 @@ def _size(op: FloatArray, pv: FloatArray, cycle: Cycle, found: Findings, *,
         assert cycle.period is not None
         if quant is None:
             quant = quantify(op, pv, period=cycle.period, ts=ts, kp=kp, delay=delay,
-                             integrating=integrating, k=k)
+                             integrating=integrating, k=k, pv_noise=found.noise[1])
         warn = quant.warnings
         multi = quant.multi_jump
         if quant.reason is not None:

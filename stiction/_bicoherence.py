@@ -297,7 +297,7 @@ def _squared_bicoherence(spec: NDArray[np.complex128], i: NDArray[np.intp],
         prod *= conj[ij[lo:hi]]
         b[lo:hi] = prod.sum(axis=1)
     b /= k
-    eps = max(float(np.percentile(d, EPSILON_PERCENTILE)), EPSILON_FLOOR * float(d.max()))
+    eps = max(v.percentiles(d, (EPSILON_PERCENTILE,))[0], EPSILON_FLOOR * float(d.max()))
     return np.asarray((b.real**2 + b.imag**2) / (d + eps))
 
 
@@ -311,9 +311,9 @@ def _third_harmonic(spec: NDArray[np.complex128], c: int) -> float | None:
     # in phase from segment to segment
     x3 = spec[:, max(3 * c - 1, c + 2) : 3 * c + 2]
     p1 = x1.real**2 + x1.imag**2
-    p3 = np.mean(x3.real**2 + x3.imag**2, axis=0) + THIRD_FLOOR * float(np.mean(p1))
-    den = float(np.mean(p1**3)) * p3
-    if not np.all(den > 0.0):
+    p3 = (x3.real**2 + x3.imag**2).mean(axis=0) + THIRD_FLOOR * float(p1.mean())
+    den = float((p1**3).mean()) * p3
+    if not (den > 0.0).all():
         return None
-    num = np.abs(np.mean((x1**3)[:, None] * np.conj(x3), axis=0)) ** 2
-    return float(np.max(num / den))
+    num = np.abs(((x1**3)[:, None] * np.conj(x3)).mean(axis=0)) ** 2
+    return float((num / den).max())

@@ -42,7 +42,7 @@ from scipy import ndimage
 
 from ._oscillation import detrend
 from ._segments import ragged, row_chunks
-from ._validate import FloatArray, median
+from ._validate import FloatArray, dot, median, percentiles
 
 __all__ = ["NO_STICTION_SI", "STICTION_SI", "StictionIndex", "half_periods", "stiction_index"]
 
@@ -64,7 +64,8 @@ def noise_sd(x: FloatArray) -> float:
     """Robust white-noise SD from second differences (insensitive to slow signal)."""
     if x.size < 4:
         return 0.0
-    d2 = np.diff(x, 2)
+    d1 = x[1:] - x[:-1]
+    d2 = d1[1:] - d1[:-1]  # np.diff(x, 2), without its Python layer
     mad = median(np.abs(d2 - median(d2)))
     return 1.4826 * mad / math.sqrt(6.0)
 
@@ -77,7 +78,7 @@ def half_periods(x: FloatArray, period: float, *,
     y = detrend(x) if detrended is None else detrended
     win = max(1, round(period / 12.0))
     ys = ndimage.uniform_filter1d(y, win, mode="nearest") if win > 1 else y
-    p5, p95 = np.percentile(ys, [5, 95])
+    p5, p95 = percentiles(ys, (5.0, 95.0))
     amp = 0.5 * float(p95 - p5)
     h = 0.1 * amp
     state = np.where(ys > h, 1, np.where(ys < -h, -1, 0))
@@ -137,7 +138,12 @@ def stiction_index(x: FloatArray, period: float) -> StictionIndex:
     mse_s = max(sse_s / n_used - noise_part, 0.0)
     mse_t = max(sse_t / n_used - noise_part, 0.0)
     total = mse_s + mse_t
-    si = 0.5 if total <= 1e-12 * max(float(np.var(y)), 1e-300) else mse_s / total
+    # var(y) <= mean(y^2): a cheap bound decides the common case without the variance
+    if total > 1e-12 * max(dot(y, y) / y.size, 1e-300) or \
+            total > 1e-12 * max(float(np.var(y)), 1e-300):
+        si = mse_s / total
+    else:
+        si = 0.5
     diff = abs(sse_s - sse_t)
     resolved = var_noise == 0.0 or math.sqrt(diff / var_noise) / 2.0 >= SHAPE_Z
     return StictionIndex(si, count, mse_s, mse_t, resolved=resolved)
@@ -157,20 +163,21 @@ def _sse_pair(y: FloatArray, ys: FloatArray, span: tuple[FloatArray, FloatArray]
     sine = np.sin(np.pi * u)
     # the triangle's apex: the half period's extremum of the smoothed signal
     sgn = np.sign(row_sum)
-    k = np.argmax(np.where(mask, sgn[:, None] * ys[idx], -np.inf), axis=1)[:, None]
-    up = np.clip(np.take_along_axis(u, k, axis=1), 0.05, 0.95)
+    k = np.where(mask, sgn[:, None] * ys[idx], -np.inf).argmax(axis=1)[:, None]
+    up = np.minimum(np.maximum(np.take_along_axis(u, k, axis=1), 0.05), 0.95)
     tri = np.where(u <= up, u / up, (1.0 - u) / (1.0 - up))
-    return (float(np.sum(_sse_rows(yc, sine, mask, nf))),
-            float(np.sum(_sse_rows(yc, tri, mask, nf))))
+    sse = _sse_rows(yc, np.stack((sine, tri)), mask, nf)
+    return float(sse[0].sum()), float(sse[1].sum())
 
 
 def _sse_rows(yc: FloatArray, basis: FloatArray, mask: np.ndarray, n: FloatArray) -> FloatArray:
     """Per row, the residual sum of squares of y ~ c + a * basis over the masked entries,
-    from the centred rows ``yc`` of y (centred first, so the closed form does not cancel)."""
+    from the centred rows ``yc`` of y (centred first, so the closed form does not cancel);
+    ``basis`` stacks several bases (axis 0), each fitted on its own."""
     b = np.where(mask, basis, 0.0)
-    bc = np.where(mask, b - (b.sum(axis=1) / n)[:, None], 0.0)
-    den = np.einsum("ij,ij->i", bc, bc)
-    num = np.einsum("ij,ij->i", bc, yc)
+    bc = np.where(mask, b - (b.sum(axis=2) / n)[..., None], 0.0)
+    den = np.einsum("kij,kij->ki", bc, bc)
+    num = np.einsum("kij,ij->ki", bc, yc)
     a = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-    r = yc - a[:, None] * bc
-    return np.asarray(np.einsum("ij,ij->i", r, r))
+    r = yc - a[..., None] * bc
+    return np.asarray(np.einsum("kij,kij->ki", r, r))

@@ -155,7 +155,7 @@ def fit_conic(x: FloatArray, y: FloatArray) -> FloatArray | None:
     m = s1 + s2 @ t
     # premultiply by the inverse of the constraint matrix [[0, 0, 2], [0, -1, 0], [2, 0, 0]]
     m = np.array([m[2] / 2.0, -m[1], m[0] / 2.0])
-    if not np.all(np.isfinite(m)):
+    if not np.isfinite(m).all():
         return None
     w, v = np.linalg.eig(m)
     v = np.real(v)
@@ -163,7 +163,7 @@ def fit_conic(x: FloatArray, y: FloatArray) -> FloatArray | None:
     ok = np.flatnonzero((cond > 0) & (np.abs(np.imag(w)) < 1e-9 * (1 + np.abs(np.real(w)))))
     if ok.size == 0:
         return None
-    a1 = v[:, ok[np.argmin(np.real(w)[ok])]]
+    a1 = v[:, ok[(np.real(w)[ok]).argmin()]]
     return np.concatenate((a1, t @ a1))
 
 
@@ -205,7 +205,7 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     if n < max(MIN_POINTS, MIN_CYCLES * p):
         return _none(f"window too short for the pattern: {n} samples, "
                      f"fewer than {MIN_CYCLES:g} periods")
-    if not (np.all(np.isfinite(op)) and np.all(np.isfinite(pv))):
+    if not (np.isfinite(op).all() and np.isfinite(pv).all()):
         return _none("non-finite samples")
     # scale first: the filters and the fit then see numbers of order one whatever the units
     r_op, r_pv = float(np.ptp(op)), float(np.ptp(pv))
@@ -216,8 +216,8 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     u = detrend((op - op[0]) / r_op)
     y = detrend((pv - pv[0]) / r_pv)
     step = max(1, int(p // POINTS_PER_PERIOD))
-    su = float(np.std(u))
-    sy = float(np.std(y))
+    su = float(u.std())
+    sy = float(y.std())
     if not (su > 0 and sy > 0):
         return _none("OP or PV does not move")
     su *= r_op
@@ -228,20 +228,22 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     # the fundamental: one complex gain from OP to PV across the band (coherence, phase)
     fund = (f >= BAND_LO * f0) & (f <= FUND_HI * f0)
     cu, cy = spec[0, fund], spec[1, fund]
-    puu = float(np.sum(np.abs(cu) ** 2))
-    pyy = float(np.sum(np.abs(cy) ** 2))
-    cross = complex(np.sum(cy * np.conj(cu)))
+    puu = float((np.abs(cu) ** 2).sum())
+    pyy = float((np.abs(cy) ** 2).sum())
+    cross = complex((cy * np.conj(cu)).sum())
     coherence = abs(cross) ** 2 / (puu * pyy) if puu > 0 and pyy > 0 else 0.0
     phase = math.degrees(abs(math.atan2(cross.imag, cross.real)))
     # the pattern: fundamental and third harmonic
     keep = (f >= BAND_LO * f0) & (f <= BAND_HI * f0)
     power = spec[0].real ** 2 + spec[0].imag ** 2
-    share = float(np.sum(power[keep]) / max(float(np.sum(power[1:])), 1e-300))
-    spec[:, ~keep] = 0.0
+    share = float(power[keep].sum() / max(float(power[1:].sum()), 1e-300))
+    kept = np.flatnonzero(keep)  # one stretch of bins: zero what lies either side
+    spec[:, : kept[0] if kept.size else spec.shape[1]] = 0.0
+    spec[:, kept[-1] + 1 if kept.size else 0 :] = 0.0
     filt = fft.irfft(spec, n, axis=1)
     cut = int(EDGE * p)
     uf, yf = filt[0, cut : n - cut : step], filt[1, cut : n - cut : step]
-    su2, sy2 = float(np.std(uf)), float(np.std(yf))
+    su2, sy2 = float(uf.std()), float(yf.std())
     if not (su2 > 0 and sy2 > 0):
         return _none("no oscillation inside the pass band", share)
     xs, ys = uf / su2, yf / sy2
@@ -254,7 +256,7 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     # the swing of the filtered OP itself: a cloud that is nearly a line fits a needle-thin
     # (numerically fragile) ellipse whose ends lie far beyond the points; no chord is wider
     # than the points
-    extent = float(np.max(xs) - np.min(xs))
+    extent = float(xs.max() - xs.min())
     chord = min(chord, extent)
     thin = abs(math.sin(math.radians(phase)))
     if thin < LINE:

@@ -53,13 +53,13 @@ import numpy as np
 
 from ._assessment import Evidence
 from ._bicoherence import bicoherence_test
-from ._detect import NO_STICTION_SI, STICTION_SI, stiction_index
+from ._detect import NO_STICTION_SI, STICTION_SI, noise_sd, stiction_index
 from ._ellipse import EllipseFit, ellipse_band
 from ._fastcycle import fast_cycle
 from ._hammerstein import HammersteinFit, hammerstein_test
 from ._horch import horch_test
 from ._kano import Kano, kano_test
-from ._oscillation import MIN_PERIOD, Oscillation, baseline, detect_oscillation, detrend
+from ._oscillation import MIN_PERIOD, Oscillation, baseline, detect_oscillations, detrend
 from ._stickslip import StickSlip, stick_slip
 from ._validate import FloatArray
 
@@ -115,23 +115,32 @@ def _unstepped(x: FloatArray) -> FloatArray:
     return detrend(x - baseline(x, x.size // BASELINE_FRACTION))
 
 
-def _signal(x: FloatArray) -> Signal:
-    best: Signal | None = None
-    unstepped = _unstepped(x)
-    variants = [detrend(x), unstepped] if x.size >= 48 else [unstepped]
-    for y in variants:
-        osc = detect_oscillation(y, min_regularity=MIN_REGULARITY)
-        sig = osc.significance if osc.oscillating else -1.0
-        if best is None or sig > best.significance:
-            best = Signal(y, osc, sig, unstepped)
-    assert best is not None
-    return best
+def _signals(op: FloatArray, pv: FloatArray) -> tuple[Signal, Signal]:
+    """OP and PV as the shape tests see them: of each signal's variants (line removed, or
+    baseline and line), the one with the more significant ACF lobe. The ACFs of all
+    variants in one batch."""
+    unstepped = [_unstepped(x) for x in (op, pv)]
+    variants = [[detrend(x), u] if x.size >= 48 else [u]
+                for x, u in zip((op, pv), unstepped, strict=True)]
+    oscs = iter(detect_oscillations([y for v in variants for y in v],
+                                    min_regularity=MIN_REGULARITY))
+    out = []
+    for ys, u in zip(variants, unstepped, strict=True):
+        best: Signal | None = None
+        for y in ys:
+            osc = next(oscs)
+            sig = osc.significance if osc.oscillating else -1.0
+            if best is None or sig > best.significance:
+                best = Signal(y, osc, sig, u)
+        assert best is not None
+        out.append(best)
+    return out[0], out[1]
 
 
 def find_cycle(op: FloatArray, pv: FloatArray, *, integrating: bool) -> Cycle:
     """The cycle of a window (module doc); OP's for a self-regulating loop, PV's for an
     integrating one, the other signal's when that one does not cycle."""
-    so, sp = _signal(op), _signal(pv)
+    so, sp = _signals(op, pv)
     regular = any(s.osc.oscillating and s.osc.regularity > 1.0 for s in (so, sp))
     order = [("PV", sp), ("OP", so)] if integrating else [("OP", so), ("PV", sp)]
     for name, s in order:
@@ -194,6 +203,7 @@ class Findings:
     kano: Kano
     hammerstein: HammersteinFit
     stick_slip: StickSlip
+    noise: tuple[float, float]  # white-noise SDs of OP and PV (noise_sd), for the sizing too
 
     def vote(self, test: str) -> int:
         return next(e.vote for e in self.evidence if e.test == test)
@@ -207,9 +217,10 @@ def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool, t
     no_cycle = "no cycle to look at"
     ell = (ellipse_band(cycle.op.x, cycle.pv.x, period=horch_period, integrating=integrating)
            if horch_period is not None else None)
-    kano = kano_test(op, pv, period=horch_period)
+    noise = (noise_sd(op), noise_sd(pv))  # once for the tests that need them
+    kano = kano_test(op, pv, period=horch_period, noise=noise)
     ham = hammerstein_test(op, pv, ts=ts, period=horch_period, integrating=integrating)
-    ss = stick_slip(op, pv)
+    ss = stick_slip(op, pv, noise=noise)
     found = {
         "ellipse": ell.evidence() if ell is not None else Evidence("ellipse", None, 0, no_cycle),
         "kano": kano.evidence(),
@@ -225,7 +236,7 @@ def gather(op: FloatArray, pv: FloatArray, cycle: Cycle, *, integrating: bool, t
                   else Evidence("horch", None, 0, "no regular cycle to correlate")),
         "stick_slip": _stick_slip(ss),
     }
-    return Findings(tuple(found[name] for name in TESTS), ell, kano, ham, ss)
+    return Findings(tuple(found[name] for name in TESTS), ell, kano, ham, ss, noise)
 
 
 def gather_for_calibration(op: np.ndarray, pv: np.ndarray, *, ts: float,

@@ -35,7 +35,7 @@ import dataclasses
 import numpy as np
 
 from ._assessment import Evidence
-from ._validate import FloatArray
+from ._validate import FloatArray, median
 
 __all__ = ["FastCycle", "fast_cycle"]
 
@@ -66,12 +66,12 @@ class FastCycle:
 def _kurtosis(x: FloatArray) -> float:
     y = x - x.mean()
     y2 = y * y
-    v = float(np.mean(y2))
-    return float(np.mean(y2 * y2)) / (v * v) - 3.0 if v > 0 else 0.0
+    v = float(y2.mean())
+    return float((y2 * y2).mean()) / (v * v) - 3.0 if v > 0 else 0.0
 
 
 def _crossing(x: FloatArray) -> float:
-    above = x > np.median(x)
+    above = x > median(x)
     return float(np.mean(above[1:] != above[:-1]))
 
 

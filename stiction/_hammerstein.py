@@ -168,7 +168,7 @@ from ._assessment import Evidence
 from ._detect import noise_sd
 from ._errors import ParameterError
 from ._oscillation import detect_oscillation
-from ._validate import FloatArray, dot, median
+from ._validate import FloatArray, dot, median, percentiles
 
 __all__ = ["HammersteinFit", "controller_sign", "hammerstein_test"]
 
@@ -293,7 +293,7 @@ def sticky_valve(u: FloatArray, piv: np.ndarray, s_band: FloatArray,
     seg[piv[1:-1] + 1] = 1
     seg = np.cumsum(seg)
     st = s[seg]
-    big = 4.0 * (float(np.max(np.abs(u))) + 1.0)
+    big = 4.0 * (float(np.abs(u).max()) + 1.0)
     run_ext = st * (np.maximum.accumulate(st * u + big * seg) - big * seg)
     nc, nk = s_band.size, s.size
     col = np.arange(1, nk + 1)
@@ -343,7 +343,9 @@ class _Target:
     stt: FloatArray
     sv: FloatArray
     svt: FloatArray
+    det: FloatArray  # of the offset-and-drift normal equations (1 where singular)
     svv_c: FloatArray  # variance sum after removing offset and drift
+    svv_d: FloatArray  # svv_c, 1 where 0 (the divisor of the residual shares)
 
     @classmethod
     def build(cls, v: FloatArray, lags: np.ndarray) -> _Target:
@@ -360,16 +362,15 @@ class _Target:
         cvv = np.concatenate(([0.0], np.cumsum((v * v)[::-1])))
         k = m - lags
         n = k.astype(np.float64)
-        target = cls(lags, cross, n, ct[k], ctt[k], cv[k], cvt[k], np.zeros(lags.size))
-        svv = cvv[k]
-        return dataclasses.replace(target, svv_c=svv - target.proj(cv[k], cvt[k], cv[k], cvt[k]))
+        st, stt, sv, svt = ct[k], ctt[k], cv[k], cvt[k]
+        det = n * stt - st * st
+        det = np.where(det > 0, det, 1.0)
+        svv_c = cvv[k] - _proj((n, st, stt, det), sv, svt, sv, svt)
+        return cls(lags, cross, n, st, stt, sv, svt, det, svv_c, np.where(svv_c > 0, svv_c, 1.0))
 
     def proj(self, a1: FloatArray, at: FloatArray, b1: FloatArray, bt: FloatArray) -> FloatArray:
         """The part of the cross sum of a and b that offset and drift explain."""
-        det = self.n * self.stt - self.st * self.st
-        det = np.where(det > 0, det, 1.0)
-        return np.asarray((self.stt * a1 * b1 - self.st * (a1 * bt + at * b1)
-                           + self.n * at * bt) / det)
+        return _proj((self.n, self.st, self.stt, self.det), a1, at, b1, bt)
 
     def fit(self, y: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Residual share of variance and gain of ``target ~ g y(t - lag) + c + b t`` for each
@@ -395,8 +396,14 @@ class _Target:
         ok = syy_c > 1e-9 * np.maximum(syy, 1e-300)
         g = np.where(ok, syv_c / np.where(ok, syy_c, 1.0), 0.0)
         rss = np.maximum(self.svv_c - g * syv_c, 0.0)
-        share = rss / np.where(self.svv_c > 0, self.svv_c, 1.0)
-        return share, g
+        return rss / self.svv_d, g
+
+
+def _proj(nuisance: tuple[FloatArray, FloatArray, FloatArray, FloatArray], a1: FloatArray,
+          at: FloatArray, b1: FloatArray, bt: FloatArray) -> FloatArray:
+    """:meth:`_Target.proj` from the nuisance sums ``(n, st, stt, det)``."""
+    n, st, stt, det = nuisance
+    return np.asarray((stt * a1 * b1 - st * (a1 * bt + at * b1) + n * at * bt) / det)
 
 
 def _product(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -410,24 +417,24 @@ def _product(a: FloatArray, b: FloatArray) -> FloatArray:
 
 
 def _responses(vp: FloatArray, period: float, integrating: bool,
-               taus: FloatArray) -> list[FloatArray]:
-    """The process model's response to each valve row, for each time constant (one array for
-    integrating processes, whose target is PV's first difference)."""
+               taus: FloatArray) -> FloatArray:
+    """The process model's response to each valve row, for each time constant: shape (taus,
+    rows, samples); one time constant for integrating processes (whose target is PV's
+    first difference)."""
     if integrating:
-        return [0.5 * (vp[:, 1:] + vp[:, :-1])]
-    out = []
-    for tf in taus:
+        return np.asarray(0.5 * (vp[:, 1:] + vp[:, :-1]))[None]
+    out = np.empty((taus.size, *vp.shape))
+    for y, tf in zip(out, taus, strict=True):
         a = math.exp(-1.0 / max(tf * period, 1e-3))
-        y, _ = signal.lfilter([1.0 - a], [1.0, -a], vp, axis=1, zi=vp[:, :1] * a)
-        out.append(np.asarray(y))
+        y[:], _ = signal.lfilter([1.0 - a], [1.0, -a], vp, axis=1, zi=vp[:, :1] * a)
     return out
 
 
-def _best(target: _Target, ys: list[FloatArray]) -> tuple[FloatArray, FloatArray]:
-    """Residual shares and gains, shape (taus, rows, lags)."""
-    rows = ys[0].shape[0]
-    share, g = target.fit(np.concatenate(ys, axis=0))
-    return share.reshape(len(ys), rows, -1), g.reshape(len(ys), rows, -1)
+def _best(target: _Target, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Residual shares and gains of the responses ``ys`` (taus, rows, samples): shape
+    (taus, rows, lags)."""
+    share, g = target.fit(ys.reshape(-1, ys.shape[2]))
+    return share.reshape(*ys.shape[:2], -1), g.reshape(*ys.shape[:2], -1)
 
 
 def _median_swing(u: FloatArray, piv: np.ndarray) -> float:
@@ -466,7 +473,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     if op.shape != pv.shape or op.ndim != 1:
         raise ParameterError("pv", f"must be 1-D and as long as op ({pv.shape} vs {op.shape})")
     n = op.size
-    if n < 4 * SAMPLES_PER_PERIOD or not (np.all(np.isfinite(op)) and np.all(np.isfinite(pv))):
+    if n < 4 * SAMPLES_PER_PERIOD or not (np.isfinite(op).all() and np.isfinite(pv).all()):
         return _none(f"window too short or not finite ({n} samples)")
     if p is None:
         for x in (op, pv):
@@ -485,7 +492,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     q = max(1, int(p // SAMPLES_PER_PERIOD))
     u = _decimate(op[n - use :], q)
     v = _decimate(pv[n - use :], q)
-    pu, pvr = np.percentile(u, [5, 50, 95]), np.percentile(v, [5, 50, 95])
+    pu, pvr = percentiles(u, (5.0, 50.0, 95.0)), percentiles(v, (5.0, 50.0, 95.0))
     su, sv = float(pu[2] - pu[0]), float(pvr[2] - pvr[0])
     if not (su > 0 and sv > 0 and math.isfinite(su) and math.isfinite(sv)):
         return _none("OP or PV does not move")
@@ -511,7 +518,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
         v = np.diff(v)
     lags = DEAD_GRID[v.size // 4 > DEAD_GRID]
     target = _Target.build(v, lags)
-    if not np.all(target.svv_c > 0):
+    if not (target.svv_c > 0).all():
         return _none("PV does not move")
 
     s_band = np.repeat(S_GRID * swing, J_GRID.size)
@@ -527,10 +534,10 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     # is an instantaneous relation of either sign in OP's and PV's increments)
     dlags = lags[lags <= STICKY_MAX_LAG]
     dtarget = _Target.build(np.diff(v), dlags)
-    dshare, dgain = _best(dtarget, [np.diff(y, axis=1) for y in ys])
+    dshare, dgain = _best(dtarget, np.diff(ys, axis=2))
     proc = _process_path(gain, lags, sigma)
     dproc = _process_path(dgain, dlags, sigma)
-    lin_w, lin_c = float(np.min(share[:, 0])), _masked_min(share[:, :1], proc[:, :1])
+    lin_w, lin_c = float(share[:, 0].min()), _masked_min(share[:, :1], proc[:, :1])
     dlin_c = _masked_min(dshare[:, :1], dproc[:, :1])
     dst = _masked_min(dshare, dproc)
 
@@ -538,17 +545,18 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     # (the band trades off against the dead time - a smaller band slips earlier, a longer
     # dead time delays PV as much: of the fits near the best, take the widest band)
     sticky = np.where(proc[:, 1:], share[:, 1:], np.inf)
-    best = float(np.min(sticky))
+    best = float(sticky.min())
     if not math.isfinite(best):  # no process-path fit (sign unknown): the plain best
         sticky = share[:, 1:, : int(np.count_nonzero(lags <= STICKY_MAX_LAG))]
-        best = float(np.min(sticky))
+        best = float(sticky.min())
     near = np.argwhere(sticky <= best + SIZE_TOL * max(best, 1e-12))
     pick = near[np.lexsort((jump[near[:, 1]], -s_band[near[:, 1]]))[0]]
     ti, ci = int(pick[0]), int(pick[1])
 
-    li = np.unravel_index(int(np.argmin(share[:, 0])), share[:, 0].shape)
-    rss_lin, tau_lin, lag_lin = lin_w, float(taus[li[0]]), int(lags[li[1]])
-    cj = int(np.argmin(sticky[ti, ci]))
+    li = np.unravel_index(int(share[:, 0].argmin()), share[:, 0].shape)
+    rss_lin, lag_lin = lin_w, int(lags[li[1]])
+    lin_y = ys[li[0], :1]  # the linear valve's response at its time constant
+    cj = int(sticky[ti, ci].argmin())
     rss_st = best
     best_s, best_j = float(s_band[ci]), float(jump[ci])
     g, tau_f, lag = float(gain[ti, ci + 1, cj]), float(taus[ti]), int(lags[cj])
@@ -573,13 +581,13 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
         proc2 = _process_path(gain2, lags, sigma) if sigma else (
             np.broadcast_to(lags <= STICKY_MAX_LAG, share2.shape))
         share2 = np.where(proc2, share2, np.inf)
-        share_l, _ = _best(target, _responses(u[None, :], per, integrating, taus_lin))
-        lj = np.unravel_index(int(np.argmin(share_l)), share_l.shape)
+        ys_l = _responses(u[None, :], per, integrating, taus_lin)
+        share_l, _ = _best(target, ys_l)
+        lj = np.unravel_index(int(share_l.argmin()), share_l.shape)
         if float(share_l[lj]) <= lin_w:
-            rss_lin, tau_lin = float(share_l[lj]), float(taus_lin[lj[0]])
-            lag_lin = int(lags[lj[2]])
-        if float(np.min(share2)) < best:
-            rss_st = float(np.min(share2))
+            rss_lin, lin_y, lag_lin = float(share_l[lj]), ys_l[lj[0]], int(lags[lj[2]])
+        if float(share2.min()) < best:
+            rss_st = float(share2.min())
             near = np.argwhere(share2 <= rss_st + SIZE_TOL * max(rss_st, 1e-12))
             sj = tuple(near[np.lexsort((j2[near[:, 1]], -s2[near[:, 1]]))[0]])
             best_s, best_j = float(s2[sj[1]]), float(j2[sj[1]])
@@ -588,8 +596,7 @@ def hammerstein_test(op: FloatArray, pv: FloatArray, *, ts: float, period: float
     # the linear valve belongs to the sticky family: the process path's best of either
     rss_st = min(rss_st, lin_c)
 
-    n_eff = _effective_n(target, _responses(u[None, :], per, integrating,
-                                            np.array([tau_lin]))[0], lag_lin)
+    n_eff = _effective_n(target, lin_y, lag_lin)
     improvement = 1.0 - rss_st / rss_lin if rss_lin > 0 else 0.0
     delta_aic = (n_eff * math.log(max(rss_lin, 1e-300) / max(rss_st, 1e-300))
                  - 2.0 * EXTRA_PARAMETERS)
@@ -650,7 +657,7 @@ def _residual(target: FloatArray, y: FloatArray, lag: int) -> FloatArray:
     return _fit_residual(yy, vv, t)
 
 
-def _spread(target: FloatArray, ys: list[FloatArray], share: FloatArray, mask: np.ndarray,
+def _spread(target: FloatArray, ys: FloatArray, share: FloatArray, mask: np.ndarray,
             *, lags: np.ndarray, per: float, sigma: float) -> float:
     """Period by period, the process path's best sticky valve against the linear valve
     with the same time constant and any dead time up to a period (any phase), each with its
@@ -658,10 +665,10 @@ def _spread(target: FloatArray, ys: list[FloatArray], share: FloatArray, mask: n
     relative improvements (-inf when either fit is missing)."""
     st = np.where(mask[:, 1:], share[:, 1:], np.inf)
     li = np.where(mask[:, :1], share[:, :1], np.inf)
-    if not (np.isfinite(np.min(st)) and np.isfinite(np.min(li))):
+    if not (np.isfinite(st.min()) and np.isfinite(li.min())):
         return -math.inf
-    i = np.unravel_index(int(np.argmin(st)), st.shape)
-    j = np.unravel_index(int(np.argmin(li)), li.shape)
+    i = np.unravel_index(int(st.argmin()), st.shape)
+    j = np.unravel_index(int(li.argmin()), li.shape)
     start = int(lags.max())
     m = target.size
     v = target[start:]
@@ -672,19 +679,21 @@ def _spread(target: FloatArray, ys: list[FloatArray], share: FloatArray, mask: n
     vvc = svv - sv * sv / cnt
 
     def rss(y: FloatArray) -> FloatArray:
-        sy, syy = np.add.reduceat(y, edges), np.add.reduceat(y * y, edges)
-        syv = np.add.reduceat(y * v, edges)
+        """Per period (columns), for each row of ``y``."""
+        sy, syy = np.add.reduceat(y, edges, axis=1), np.add.reduceat(y * y, edges, axis=1)
+        syv = np.add.reduceat(y * v, edges, axis=1)
         yyc, yvc = syy - sy * sy / cnt, syv - sy * sv / cnt
         g = np.where(yyc > 0, yvc / np.where(yyc > 0, yyc, 1.0), 0.0)
         g = np.where(g * sigma > 0, g, 0.0)
         return np.asarray(np.maximum(vvc - g * yvc, 0.0))
 
+    # row 0 the sticky valve at its dead time, then the linear valve at every dead time
     lag_s = int(lags[i[2]])
-    r_st = rss(ys[i[0]][i[1] + 1][start - lag_s : m - lag_s])
-    yl = ys[j[0]][0]
-    r_li = np.min([rss(yl[start - int(d) : m - int(d)]) for d in lags], axis=0)
+    shifted = np.lib.stride_tricks.sliding_window_view(ys[j[0]][0], v.size)[start - lags]
+    r = rss(np.vstack((ys[i[0]][i[1] + 1][start - lag_s : m - lag_s], shifted)))
+    r_st, r_li = r[0], r[1:].min(axis=0)
     ok = r_li > 0
-    if not np.any(ok):
+    if not ok.any():
         return -math.inf
     return median(1.0 - r_st[ok] / r_li[ok])
 

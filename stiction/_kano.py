@@ -85,7 +85,7 @@ import numpy as np
 from ._assessment import Evidence
 from ._detect import noise_sd
 from ._errors import ParameterError
-from ._validate import FloatArray, median
+from ._validate import FloatArray, median, percentiles
 
 __all__ = ["Kano", "kano_test"]
 
@@ -153,11 +153,13 @@ def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
-def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) -> Kano:
+def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None,
+              noise: tuple[float, float] | None = None) -> Kano:
     """Kano et al. (2004) stuck-interval test on one window (see the module doc).
 
     ``op``, ``pv``: equal-length finite 1-D arrays; ``period``: the oscillation period in
-    samples, when known (sets the averaging scale)."""
+    samples, when known (sets the averaging scale); ``noise``: the white-noise SDs of OP and
+    PV (:func:`~stiction._detect.noise_sd`), when the caller has them."""
     m = _scale(period)
     op = np.asarray(op, dtype=np.float64)
     pv = np.asarray(pv, dtype=np.float64)
@@ -166,11 +168,11 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
     n = op.size
     if n < max(MIN_SAMPLES, (2 + RUN_MIN) * m):
         return _none(f"window too short: {n} samples")
-    if not (np.all(np.isfinite(op)) and np.all(np.isfinite(pv))):
+    if not (np.isfinite(op).all() and np.isfinite(pv).all()):
         return _none("non-finite samples")
     # work on centred, scaled copies: thresholds are relative, so this changes no result
     # but keeps huge or tiny magnitudes away from overflow and cancellation
-    po, pp = np.percentile(op, [2, 50, 98]), np.percentile(pv, [2, 50, 98])
+    po, pp = percentiles(op, (2.0, 50.0, 98.0)), percentiles(pv, (2.0, 50.0, 98.0))
     r_op, r_pv = float(po[2] - po[0]), float(pp[2] - pp[0])
     if not (r_pv > 0 and math.isfinite(r_pv)):
         return _none("PV does not move at all: no stick-slip to see (dead sensor or valve "
@@ -179,14 +181,15 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
         return _none("OP does not move: nothing to be stuck against")
     u = (op - po[1]) / r_op
     y = (pv - 0.5 * (pp[0] + pp[2])) / r_pv  # centred on PV's mid-range
-    sd_u, sd_y = noise_sd(u), noise_sd(y)
+    # the noise SD scales with the signal: of the scaled copies, that of the raw signals
+    sd_u, sd_y = (noise[0] / r_op, noise[1] / r_pv) if noise else (noise_sd(u), noise_sd(y))
     cu = np.concatenate(([0.0], np.cumsum(u)))
     cy = np.concatenate(([0.0], np.cumsum(y)))
     t = np.arange(m, n - m + 1)
     dy = (cy[t + m] - 2.0 * cy[t] + cy[t - m]) / m  # mean after - mean before
     eps_y = max(STILL_Z * sd_y * math.sqrt(2.0 / m), STILL_RANGE)
     still = np.abs(dy) <= eps_y
-    still_share = float(np.mean(still))
+    still_share = float(still.mean())
     eps_u = max(OP_Z * sd_u * math.sqrt(2.0 / m), OP_RANGE)
     a, b = _runs(still)
     a, b = t[a], t[b - 1] + 1  # sample positions [a, b)
@@ -194,7 +197,7 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
     a, b = a[long_], b[long_]
     mu = (cu[m:] - cu[:-m]) / m  # mu[t]: mean of u[t:t + m]
     # OP's total travel on m-sample means, averaged over the m phases of the grid
-    total_tv = float(np.sum(np.abs(mu[m:] - mu[:-m]))) / m
+    total_tv = float(np.abs(mu[m:] - mu[:-m]).sum()) / m
     if a.size:
         mu_a = mu[a]  # OP mean over the first and last scale of the run
         mu_b = mu[b - m]
@@ -204,7 +207,7 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
         parts = np.clip((b - a) // m, 1, PARTS)
         frac = np.minimum(np.arange(PARTS + 1)[None, :], parts[:, None]) / parts[:, None]
         pos = a[:, None] + np.rint(frac * (b - m - a)[:, None]).astype(np.intp)
-        tv = np.sum(np.abs(np.diff(mu[pos], axis=1)), axis=1)
+        tv = np.abs(np.diff(mu[pos], axis=1)).sum(axis=1)
         offset = (cy[b] - cy[a]) / (b - a)
         # the interval ends in a slip: PV's mean one to two scales later has moved away
         end = np.minimum(b + 2 * m, n)
@@ -214,7 +217,7 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
                          >= SLIP + STILL_Z * sd_y * math.sqrt(2.0 / m))
         ramp = ((np.abs(travel) >= eps_u) & (np.abs(travel) >= MONOTONE * tv)
                 & (np.abs(offset) >= OFFSET * 0.5))
-        ramp_share = float(np.sum((b - a)[ramp])) / n
+        ramp_share = float(((b - a)[ramp]).sum()) / n
         ok = ramp & slip
         a, b, travel, offset = a[ok], b[ok], travel[ok], offset[ok]
     else:
@@ -228,10 +231,10 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None) ->
         dropped = int(a.size - np.count_nonzero(keep))
         a, b, travel = a[keep], b[keep], travel[keep]
     count = int(a.size)
-    index = float(np.sum(b - a)) / n
-    travel_share = float(np.sum(np.abs(travel))) / total_tv if total_tv > 0 else 0.0
+    index = float((b - a).sum()) / n
+    travel_share = float(np.abs(travel).sum()) / total_tv if total_tv > 0 else 0.0
     band = median(np.abs(travel)) * r_op if count else None
-    moved = (float(np.max(u)) - float(np.min(u))) >= 10.0 * eps_u
+    moved = (float(u.max()) - float(u.min())) >= 10.0 * eps_u
     vote, note = _vote(index, count, still_share, moved and ramp_share <= INDEX_NO, band)
     return Kano(index, min(travel_share, 1.0), still_share, count, dropped, band, vote, note)
 

@@ -18,13 +18,15 @@ loops 0-2.5, the paper's limit cycles 10-100, the plant records' sticky flow loo
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Sequence
 
 import numpy as np
 from scipy import fft
 
-from ._validate import FloatArray, dot
+from ._validate import FloatArray, centred_time, dot, median, medians
 
-__all__ = ["Oscillation", "acf", "baseline", "detect_oscillation"]
+__all__ = ["Oscillation", "acf", "baseline", "detect_oscillation", "detect_oscillations"]
 
 MAX_CROSSINGS = 11  # Thornhill uses the first ten intervals
 MIN_CROSSINGS = 4  # at least two period estimates
@@ -45,10 +47,10 @@ class Oscillation:
 
 def detrend(x: FloatArray) -> FloatArray:
     """``x`` minus its least-squares straight line."""
-    n = x.size
-    t = np.arange(n) - (n - 1) / 2.0
-    slope = dot(t, x - x.mean()) / dot(t, t)
-    return np.asarray(x - x.mean() - slope * t)
+    t, tt = centred_time(x.size)
+    mean = np.add.reduce(x) / x.size  # x.mean(), without its Python layer
+    slope = dot(t, x - mean) / tt
+    return np.asarray(x - mean - slope * t)
 
 
 def baseline(x: FloatArray, window: int) -> FloatArray:
@@ -64,33 +66,53 @@ def baseline(x: FloatArray, window: int) -> FloatArray:
     b = max(1, window // 16)
     m = n // b
     if m < 3:
-        return np.full(n, float(np.median(x)))
-    blocks = np.median(x[: m * b].reshape(m, b), axis=1)
+        return np.full(n, median(x))
+    blocks = medians(x[: m * b].reshape(m, b))
     k = min(17, m if m % 2 else m - 1)
-    padded = np.pad(blocks, k // 2, mode="edge")
-    med = np.median(np.lib.stride_tricks.sliding_window_view(padded, k), axis=1)
+    h = k // 2
+    padded = np.concatenate((np.full(h, blocks[0]), blocks, np.full(h, blocks[-1])))
+    med = medians(np.lib.stride_tricks.sliding_window_view(padded, k))
     centres = np.arange(m) * b + (b - 1) / 2.0
     return np.asarray(np.interp(np.arange(n), centres, med))
 
 
 def acf(x: FloatArray) -> FloatArray:
-    """Biased autocorrelation of ``x`` (mean removed) for lags 0..n-1, acf[0] = 1."""
-    n = x.size
-    y = x - x.mean()
+    """Biased autocorrelation of ``x`` (mean removed) for lags 0..n-1, acf[0] = 1; of each
+    row for a 2-D ``x`` (one FFT for all rows: pocketfft does two rows in little more than
+    the time of one, with the same result)."""
+    n = x.shape[-1]
+    y = x - x.mean(axis=-1, keepdims=True)
     nfft = fft.next_fast_len(2 * n, real=True)
-    f = fft.rfft(y, nfft)
-    r = fft.irfft(f.real**2 + f.imag**2, nfft)[:n]
-    return np.asarray(r / r[0]) if r[0] > 0 else np.zeros(n)
+    f = fft.rfft(y, nfft, axis=-1)
+    r = fft.irfft(f.real**2 + f.imag**2, nfft, axis=-1)[..., :n]
+    r0 = r[..., :1]
+    return np.asarray(np.where(r0 > 0, r / np.where(r0 > 0, r0, 1.0), 0.0))
 
 
 def detect_oscillation(x: FloatArray, *, min_regularity: float = 1.0) -> Oscillation:
     """Is ``x`` (1-D, finite) regularly oscillating, and with what period (samples)?"""
-    n = x.size
-    r = acf(detrend(x))
+    return _from_acf(acf(detrend(x)), min_regularity)
+
+
+def detect_oscillations(xs: Sequence[FloatArray], *, min_regularity: float = 1.0
+                        ) -> list[Oscillation]:
+    """:func:`detect_oscillation` of each of several signals of one length, their ACFs two
+    at a time (larger batches gain nothing more, and their temporaries outgrow the
+    allocator's heap: fresh pages from the OS at every call)."""
+    out: list[Oscillation] = []
+    for i in range(0, len(xs), 2):
+        r = acf(np.stack([detrend(x) for x in xs[i : i + 2]]))
+        out.extend(_from_acf(row, min_regularity) for row in r)
+    return out
+
+
+def _from_acf(r: FloatArray, min_regularity: float) -> Oscillation:
+    """The oscillation seen in the ACF ``r`` of a signal of ``r.size`` samples."""
+    n = r.size
     max_lag = (2 * n) // 3
     seg = r[1:max_lag]
     sgn = np.signbit(seg)
-    idx = np.flatnonzero(sgn[1:] != sgn[:-1])[:MAX_CROSSINGS]
+    idx = (sgn[1:] != sgn[:-1]).nonzero()[0][:MAX_CROSSINGS]
     if idx.size < MIN_CROSSINGS:
         return Oscillation(False, None, 0.0,
                            f"no regular oscillation: the ACF crosses zero only {idx.size} times "
@@ -99,15 +121,16 @@ def detect_oscillation(x: FloatArray, *, min_regularity: float = 1.0) -> Oscilla
     a, b = seg[idx], seg[idx + 1]
     z = idx + 1 + a / (a - b)
     periods = z[2:] - z[:-2]
-    tp = float(periods.mean())
-    sd = float(periods.std())
+    tp = float(np.add.reduce(periods) / periods.size)
+    dev = periods - tp
+    sd = math.sqrt(float(np.add.reduce(dev * dev) / dev.size))  # periods.std()
     reg = float("inf") if sd == 0 else tp / (3.0 * sd)
     if reg <= min_regularity:
         return Oscillation(False, tp, reg,
                            f"no regular oscillation: ACF zero crossings irregular "
                            f"(regularity {reg:.2f} <= {min_regularity:g})")
     lobe = seg[int(np.ceil(z[1])) - 1 : int(np.floor(z[2]))]
-    height = float(np.max(np.abs(lobe))) * np.sqrt(n) if lobe.size else 0.0
+    height = float(np.abs(lobe).max()) * math.sqrt(n) if lobe.size else 0.0
     if height < SIGNIFICANCE:
         return Oscillation(False, None, reg,
                            f"no significant oscillation: the ACF one period out is "

@@ -17,7 +17,7 @@ import numpy as np
 
 from ._detect import noise_sd
 from ._responding import NotResponding, not_responding
-from ._validate import FloatArray, median
+from ._validate import FloatArray, median, percentiles
 
 __all__ = ["MIN_SAMPLES", "Cleaned", "check_quality"]
 
@@ -62,7 +62,7 @@ def _longest_constant_run(x: FloatArray) -> tuple[int, int]:
     if not same.any():
         return 0, 1
     starts, lengths = _runs(same)
-    k = int(np.argmax(lengths))
+    k = int(lengths.argmax())
     return int(starts[k]), int(lengths[k]) + 1
 
 
@@ -92,7 +92,7 @@ def _levels(x: FloatArray) -> float:
         return 0.0
     span = float(np.ptp(x))
     # the quantum: a low percentile of the non-zero steps, robust to a few odd samples
-    q = float(np.percentile(steps, 5))
+    q = percentiles(steps, (5.0,))[0]
     # unquantised data has steps of every size; only call it a quantum if steps are
     # (nearly) multiples of it
     ratio = steps / q
@@ -106,7 +106,7 @@ def _saturation(op: FloatArray) -> tuple[float, str, float] | None:
     ``SATURATION_RUN`` samples within ``SATURATION_BAND`` of its range), which extreme holds
     most of it, and its value. No OP range is assumed: a controller output clamped at 0 %,
     at 4 mA or at a raw count of 16383 is pinned at its own extreme in every unit."""
-    lo, hi = float(np.min(op)), float(np.max(op))
+    lo, hi = float(op.min()), float(op.max())
     band = SATURATION_BAND * (hi - lo)
     best: tuple[float, str, float] | None = None
     for name, mask, value in (("minimum", op <= lo + band, lo), ("maximum", op >= hi - band, hi)):
@@ -173,7 +173,7 @@ def check_quality(op: FloatArray, pv: FloatArray, span: float | None = None) -> 
 
     # -- flat or frozen
     for name, x in (("OP", op), ("PV", pv)):
-        if float(np.ptp(x)) <= 1e-12 * float(np.max(np.abs(x))):
+        if float(np.ptp(x)) <= 1e-12 * float(np.abs(x).max()):
             if name == "PV" and (hint := _op_moved(op, 0, op.size, span)):
                 return bad(f"PV is constant{hint}")
             return bad(f"{name} is constant (flat signal: loop in manual or tag frozen?)")

@@ -51,7 +51,7 @@ import numpy as np
 from ._detect import noise_sd
 from ._segments import closed_rss, ragged, row_chunks
 from ._switching import Switches, find_switches
-from ._validate import FloatArray, median
+from ._validate import FloatArray, median, percentiles
 
 __all__ = ["Quantification", "quantify"]
 
@@ -82,9 +82,9 @@ class Quantification:
 def _mean(x: FloatArray) -> float:
     """10 %-trimmed mean (as ``scipy.stats.trim_mean``: ``int(TRIM n)`` cut from each end)."""
     if x.size < 5:
-        return float(np.mean(x))
+        return float(x.mean())
     cut = int(TRIM * x.size)
-    return float(np.mean(np.sort(x)[cut : x.size - cut]))
+    return float((np.sort(x)[cut : x.size - cut]).mean())
 
 
 def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
@@ -95,7 +95,7 @@ def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
     seg = op[win]
     t = np.arange(-5, 1) + 2.5
     slope = (seg - seg.mean(axis=1, keepdims=True)) @ t / float(t @ t)
-    return 0.5 * float(np.mean(np.abs(slope)))
+    return 0.5 * float(np.abs(slope).mean())
 
 
 def _second_steps(
@@ -138,36 +138,49 @@ def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
     if tau is None:
         cols = np.stack((yy, yy * t, yy * yy))
     else:
+        # planes g, g^2, y, y g, y^2; the padding is zero in y already, so only g needs the mask
         g = np.exp(np.clip(-t / tau, -300.0, 300.0))
-        cols = np.stack((g, g * g, yy, yy * g, yy * yy)) * mask
-    pre = np.cumsum(cols, axis=2)  # sums over [0, c]
-    suf = np.cumsum(cols[..., ::-1], axis=2)[..., ::-1]  # sums over [c, n)
-    width = idx.shape[1] - 2 * margin
+        cols = np.empty((5, *yy.shape))
+        np.multiply(g, mask, out=cols[0])
+        np.multiply(g, g, out=cols[1])
+        cols[1] *= mask
+        cols[2] = yy
+        np.multiply(yy, g, out=cols[3])
+        np.multiply(yy, yy, out=cols[4])
+    # side[:, 0]: sums over [0, c] (prefix); side[:, 1]: over [c + 1, n) (suffix, one column
+    # on, so that both sides of the split before column c + 1 share an index); one
+    # closed-form fit for both
+    w_all = idx.shape[1]
+    side = np.empty((cols.shape[0], 2, *yy.shape))
+    np.cumsum(cols, axis=2, out=side[:, 0])
+    np.cumsum(cols[..., :0:-1], axis=2, out=side[:, 1, :, w_all - 2 :: -1])
+    side[:, 1, :, -1] = 0.0
+    width = w_all - 2 * margin
     c = np.arange(margin, margin + width, dtype=np.float64)[None, :]  # split: [0, c), [c, n)
     mc = c < nf - margin
-    left = pre[..., margin - 1 : margin - 1 + width]
-    right = suf[..., margin : margin + width]
-    one = pre[..., -1:]  # padding adds zeros: the sums over [0, n)
+    sums = side[..., margin - 1 : margin - 1 + width]
+    one = side[:, 0, :, -1:]  # padding adds zeros: the sums over [0, n)
+    count = np.stack(np.broadcast_arrays(c, nf - c))
     if tau is None:
         t1 = c * ((c - 1.0) / 2.0 - h)  # sum of t over [0, c)
         t2 = (c - 1.0) * c * (2.0 * c - 1.0) / 6.0 - h * (c - 1.0) * c + c * h * h
         t1_all = -h  # over [0, n): n ((n - 1) / 2 - h)
         t2_all = (nf - 1.0) * nf * (2.0 * nf - 1.0) / 6.0 - h * (nf - 1.0) * nf + nf * h * h
-        r_left, a_left, b_left = closed_rss((c, t1, t2, *left))
-        r_right, a_right, b_right = closed_rss((nf - c, t1_all - t1, t2_all - t2, *right))
+        r, a, b = closed_rss((count, np.stack(np.broadcast_arrays(t1, t1_all - t1)),
+                              np.stack(np.broadcast_arrays(t2, t2_all - t2)), *sums))
         r_one, _, _ = closed_rss((nf, t1_all, t2_all, *one))
     else:
-        r_left, a_left, b_left = closed_rss((c, *left))
-        r_right, a_right, b_right = closed_rss((nf - c, *right))
+        r, a, b = closed_rss((count, *sums))
         r_one, _, _ = closed_rss((nf, *one))
+    r_left, r_right = r
     two = np.where(mc, r_left + r_right, np.inf)
-    k = np.argmin(two, axis=1)[:, None]
-    rss2 = np.take_along_axis(two, k, axis=1)[:, 0]
+    rows = np.arange(two.shape[0])
+    k = two.argmin(axis=1)
+    rss2 = two[rows, k]
     f = (r_one[:, 0] - rss2) / 2.0 / np.maximum(rss2 / (n - 4), 1e-300)
-    if tau is None:
-        step = np.take_along_axis(np.broadcast_to(b_right - b_left, two.shape), k, axis=1)[:, 0]
-    else:
-        step = np.take_along_axis(np.broadcast_to(a_right - a_left, two.shape), k, axis=1)[:, 0]
+    # the change at the split: of the slope (ramp) or of the steady state (exponential)
+    lev = b if tau is None else a
+    step = lev[1, rows, k] - lev[0, rows, k]
     return np.asarray(np.where(f >= F_SPLIT, step, np.nan))
 
 
@@ -181,8 +194,10 @@ def quantify(
     delay: float,
     integrating: bool,
     k: float,
+    pv_noise: float | None = None,
 ) -> Quantification:
-    """Estimate fd, fs (OP units) from a window already judged sticky."""
+    """Estimate fd, fs (OP units) from a window already judged sticky; ``pv_noise``: PV's
+    white-noise SD (:func:`~stiction._detect.noise_sd`), when the caller has it."""
     sw = find_switches(pv, period, integrating=integrating)
     if sw is None or sw.onsets.size < 3:
         return Quantification(reason="fewer than three PV switching points found")
@@ -203,8 +218,8 @@ def quantify(
     # multi-jump check: a significant second step the same way inside a half cycle, or two
     # consecutive jumps the same way; a poor single-curve fit is counted apart (poor_fit, see
     # the module doc): PV that creeps between jumps has not jumped twice
-    sigma = noise_sd(pv)
-    p5, p95 = np.percentile(pv, [5, 95])
+    sigma = noise_sd(pv) if pv_noise is None else pv_noise
+    p5, p95 = percentiles(pv, (5.0, 95.0))
     swing_pv = float(p95 - p5)
     rms = np.sqrt(sw.rss / np.maximum(sw.count, 1.0))
     poor_fit = rms > np.maximum(RESID_NOISE_FACTOR * sigma, RESID_SWING_FRACTION * swing_pv)

@@ -69,7 +69,7 @@ def _longest_still(pv: FloatArray, tol: float) -> tuple[int, int]:
     m = np.concatenate(([False], still, [False])).astype(np.int8)
     d = np.diff(m)
     starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    k = int(np.argmax(ends - starts))
+    k = int((ends - starts).argmax())
     return int(starts[k]), int(ends[k] - starts[k]) + 1
 
 
@@ -89,7 +89,7 @@ def not_responding(op: FloatArray, pv: FloatArray, *, span: float | None = None
     if means.size < 2:
         return None
     travel = float(means[-1] - means[0])
-    variation = float(np.sum(np.abs(np.diff(means))))
+    variation = float(np.abs(np.diff(means)).sum())
     sd = noise_sd(seg)
     if variation == 0.0 or abs(travel) < MONOTONE * variation or abs(travel) <= OP_NOISE * sd:
         return None

@@ -14,7 +14,7 @@ import numpy as np
 
 from ._validate import FloatArray
 
-__all__ = ["Prefix", "closed_rss", "exp_basis", "prefix", "ragged", "row_chunks", "rss", "sums2"]
+__all__ = ["Prefix", "closed_rss", "exp_basis", "prefix", "ragged", "row_chunks", "rss"]
 
 CHUNK = 4096
 """Entries of one zero-padded matrix of :func:`ragged` rows processed at a time."""
@@ -63,20 +63,16 @@ def exp_basis(t: FloatArray, t0: float, tau: float | None) -> FloatArray:
     return np.column_stack((np.ones_like(t), g))
 
 
-def sums2(g: FloatArray, y: FloatArray) -> FloatArray:
-    """Rows (1, g, g^2, y, y g, y^2) of a two-column fit ``y ~ a + b g``, for cumsums."""
-    return np.stack((np.ones_like(g), g, g * g, y, y * g, y * y))
-
-
 def closed_rss(s: FloatArray | tuple[FloatArray, ...]) -> tuple[FloatArray, FloatArray, FloatArray]:
     """RSS and (a, b) of ``y ~ a + b g`` from the sums (n, Sg, Sgg, Sy, Syg, Syy) along
     axis 0 (or as six broadcastable arrays); a degenerate ``g`` (constant over the
     interval) falls back to ``y ~ a``."""
     n, sg, sgg, sy, syg, syy = s
-    det = n * sgg - sg * sg
-    ok = det > 1e-12 * np.maximum(n * sgg, 1e-300)
-    d = np.where(ok, det, 1.0)
-    b = np.where(ok, (n * syg - sg * sy) / d, 0.0)
+    nsgg = n * sgg
+    det = nsgg - sg * sg
+    ok = det > 1e-12 * np.maximum(nsgg, 1e-300)
+    num = n * syg - sg * sy
+    b = np.divide(num, det, out=np.zeros(np.broadcast_shapes(num.shape, det.shape)), where=ok)
     a = (sy - b * sg) / np.maximum(n, 1.0)
     r = syy - a * sy - b * syg
     return np.maximum(r, 0.0), a, b
@@ -96,12 +92,11 @@ def row_chunks(lengths: np.ndarray, budget: int = CHUNK) -> list[slice]:
     ``budget`` entries (at least one row each). Row-wise fits done chunk by chunk keep their
     working set in cache: one matrix for the whole window made long windows superlinear."""
     out: list[slice] = []
-    start, width = 0, 0
-    for k, length in enumerate(lengths.tolist()):
-        w = max(width, int(length))
-        if k > start and w * (k + 1 - start) > budget:
-            out.append(slice(start, k))
-            start, w = k, int(length)
-        width = w
-    out.append(slice(start, len(lengths)))
-    return out
+    start, n = 0, lengths.size
+    while start < n:
+        # a chunk's size with each further row: nondecreasing, so a binary search
+        size = np.maximum.accumulate(lengths[start:]) * np.arange(1, n - start + 1)
+        stop = start + max(1, int(np.searchsorted(size, budget, side="right")))
+        out.append(slice(start, stop))
+        start = stop
+    return out or [slice(0, 0)]

@@ -42,7 +42,18 @@ _LAST = _LOG_S_GRID.size - 1
 _BLOCK = 32768  # grid x frequency entries per pass of _gcv
 
 
-def _gcv_s(dct_y: FloatArray, lam2: FloatArray, near: float | None = None) -> float:
+@functools.lru_cache(maxsize=2)
+def _shrinkage(n: int) -> FloatArray:
+    """``q = s L / (1 + s L)`` for every ``s`` of the grid (rows) and every frequency of
+    length ``n`` (read-only, cached: GCV needs it at every iteration and windows repeat
+    their length; 37 x n values)."""
+    q = np.multiply.outer(10.0**_LOG_S_GRID, _lambda2(n))
+    np.divide(q, q + 1.0, out=q)
+    q.flags.writeable = False
+    return q
+
+
+def _gcv_s(dct_y: FloatArray, near: float | None = None) -> float:
     """The ``s`` minimising GCV(s) = (RSS/n) / (1 - tr(H)/n)^2, searched on log10 s.
 
     GCV is evaluated on a grid of log10 s in [-6, 12] (step 0.5), and the minimum placed by
@@ -56,22 +67,22 @@ def _gcv_s(dct_y: FloatArray, lam2: FloatArray, near: float | None = None) -> fl
     y2 = dct_y * dct_y
     if near is None:
         coarse = np.arange(0, _LAST + 1, _COARSE)
-        centre = int(coarse[int(np.argmin(_gcv(y2, lam2, _LOG_S_GRID[coarse])))])
+        centre = int(coarse[int(_gcv(y2, coarse).argmin())])
         idx = np.arange(max(0, centre - _COARSE + 1), min(_LAST, centre + _COARSE - 1) + 1)
     else:
         idx = np.flatnonzero(np.abs(_LOG_S_GRID - math.log10(near)) <= 2.0)
         if idx.size < 3:
             idx = np.arange(_LAST + 1)
-    g = _gcv(y2, lam2, _LOG_S_GRID[idx])
-    i = int(np.argmin(g))
+    g = _gcv(y2, idx)
+    i = int(g.argmin())
     if i == 0 and idx[0] > 0:  # the minimum lies further down: try the rest below
         more = np.arange(idx[0])
-        idx, g = np.concatenate((more, idx)), np.concatenate((_gcv(y2, lam2, _LOG_S_GRID[more]), g))
-        i = int(np.argmin(g))
+        idx, g = np.concatenate((more, idx)), np.concatenate((_gcv(y2, more), g))
+        i = int(g.argmin())
     elif i == idx.size - 1 and idx[-1] < _LAST:  # further up
         more = np.arange(idx[-1] + 1, _LAST + 1)
-        idx, g = np.concatenate((idx, more)), np.concatenate((g, _gcv(y2, lam2, _LOG_S_GRID[more])))
-        i = int(np.argmin(g))
+        idx, g = np.concatenate((idx, more)), np.concatenate((g, _gcv(y2, more)))
+        i = int(g.argmin())
     x = float(_LOG_S_GRID[idx[i]])
     if 0 < i < g.size - 1:
         g0, g1, g2 = float(g[i - 1]), float(g[i]), float(g[i + 1])
@@ -81,22 +92,22 @@ def _gcv_s(dct_y: FloatArray, lam2: FloatArray, near: float | None = None) -> fl
     return float(10.0**x)
 
 
-def _gcv(y2: FloatArray, lam2: FloatArray, log_s: FloatArray) -> FloatArray:
-    """GCV at each ``log_s`` from the squared DCT coefficients ``y2``. With
-    ``q = 1 - gamma = s L / (1 + s L)``: RSS = sum q^2 y2, 1 - tr(H)/n = mean q.
+def _gcv(y2: FloatArray, grid: np.ndarray) -> FloatArray:
+    """GCV at the grid points ``grid`` (indices into the log10 s grid) from the squared DCT
+    coefficients ``y2``. With ``q = 1 - gamma = s L / (1 + s L)`` (:func:`_shrinkage`):
+    RSS = sum q^2 y2, 1 - tr(H)/n = mean q.
 
     Blocks of frequencies at a time, in place and without BLAS: the whole grid x n matrix
     of a long window falls out of cache (and each such temporary is fresh memory from the
     OS), which made long windows superlinear; a threaded BLAS costs more than it saves on
     a busy CPU."""
     n = y2.size
-    s = 10.0**log_s
-    cols = max(64, _BLOCK // s.size)
-    sum_q = np.zeros(s.size)
-    rss = np.zeros(s.size)
+    table = _shrinkage(n)
+    cols = max(64, _BLOCK // grid.size)
+    sum_q = np.zeros(grid.size)
+    rss = np.zeros(grid.size)
     for k in range(0, n, cols):
-        q = np.multiply.outer(s, lam2[k : k + cols])
-        np.divide(q, q + 1.0, out=q)
+        q = table[grid, k : k + cols]
         sum_q += q.sum(axis=1)
         np.multiply(q, q, out=q)
         rss += np.einsum("gk,k->g", q, y2[k : k + cols])
@@ -134,7 +145,7 @@ def smooth(
     y_f = np.where(w0 > 0, y, 0.0)
     if weights is None and not robust:
         dct_y = fft.dct(y_f, norm="ortho")
-        s_ = _gcv_s(dct_y, lam2) if s is None else s
+        s_ = _gcv_s(dct_y) if s is None else s
         z = fft.idct(dct_y / (1.0 + s_ * lam2), norm="ortho")
         return np.asarray(z), s_
 
@@ -154,7 +165,7 @@ def smooth(
         for _ in range(1 if unit else max_iter):
             dct_r = fft.dct(w * (y_f - z) + z, norm="ortho")
             if s is None:  # GCV on the gap-filled, re-weighted data (as Garcia's code does)
-                s_ = _gcv_s(dct_r, lam2, near=s_ if s_searched else None)
+                s_ = _gcv_s(dct_r, near=s_ if s_searched else None)
                 s_searched = True
             z_new = np.asarray(fft.idct(dct_r / (1.0 + s_ * lam2), norm="ortho"))
             if unit:

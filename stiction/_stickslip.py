@@ -47,7 +47,8 @@ import math
 import numpy as np
 
 from ._detect import noise_sd
-from ._validate import FloatArray
+from ._segments import ragged, row_chunks
+from ._validate import FloatArray, percentiles
 
 __all__ = ["Episode", "StickSlip", "stick_slip"]
 
@@ -61,6 +62,7 @@ MONOTONE = 0.7
 OP_NOISE = 10.0
 SAME_WAY_KICK = 0.25
 KICK_RATIO = 1.0
+FIRST_LOOK = 64  # samples: the first chunk of the backward search for a stuck phase's start
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,52 +101,110 @@ def _means(x: FloatArray, m: int) -> tuple[FloatArray, FloatArray]:
 
 def _candidates(a: FloatArray, thr: float, m: int) -> list[int]:
     """Positions of the largest ``a`` above ``thr``, at least ``2 m`` apart (greedy, largest
-    first: each pick blocks its neighbourhood)."""
+    first: each pick blocks its neighbourhood).
+
+    Points ``2 m`` or more apart never block each other, so the points above ``thr`` fall
+    into independent clusters; a cluster narrower than ``2 m`` (a slip's few samples) gets
+    one pick, its first maximum, and only wider ones run the greedy."""
     above = np.flatnonzero(a >= thr)
-    blocked = np.zeros(a.size, dtype=bool)
-    picked: list[int] = []
-    for i in above[np.argsort(-a[above], kind="stable")].tolist():
-        if not blocked[i]:
-            picked.append(i)
-            blocked[max(0, i - 2 * m + 1) : i + 2 * m] = True
+    if above.size == 0:
+        return []
+    vals = a[above]
+    starts = np.concatenate(([0], np.flatnonzero(above[1:] - above[:-1] >= 2 * m) + 1))
+    ends = np.append(starts[1:], above.size)
+    top = np.maximum.reduceat(vals, starts)
+    cluster = np.repeat(np.arange(starts.size), ends - starts)
+    at_top = np.flatnonzero(vals == top[cluster])
+    first = at_top[np.concatenate(([True], cluster[at_top[1:]] != cluster[at_top[:-1]]))]
+    picked = above[first].tolist()
+    for c in np.flatnonzero(above[ends - 1] - above[starts] >= 2 * m).tolist():
+        picked.remove(int(above[first[c]]))
+        picked.extend(_greedy(above[starts[c] : ends[c]], vals[starts[c] : ends[c]], m))
     return sorted(picked)
 
 
-def _still_since(ys: FloatArray, end: int, level: float, band: float) -> int:
-    """First index of the stretch ending at ``end`` (inclusive) in which ``ys`` stays within
-    ``band`` of ``level``; searched backwards in growing chunks, so a short stuck phase
-    costs little in a long window."""
+def _greedy(at: np.ndarray, vals: FloatArray, m: int) -> list[int]:
+    """:func:`_candidates` within one cluster ``at`` (positions, ascending) of values
+    ``vals``."""
+    picked: list[int] = []
+    for i in at[np.argsort(-vals, kind="stable")].tolist():
+        if all(abs(i - j) >= 2 * m for j in picked):
+            picked.append(i)
+    return picked
+
+
+def _still_since_all(ys: FloatArray, end: np.ndarray, level: FloatArray, band: FloatArray
+                     ) -> np.ndarray:
+    """For each stretch ending at ``end[k]`` (inclusive), the first index from which ``ys``
+    stays within ``band[k]`` of ``level[k]``: searched backwards in growing chunks, so a short
+    stuck phase costs little in a long window, each chunk one array operation over the
+    stretches whose start is still to be found."""
+    start = np.zeros(end.size, dtype=np.intp)
+    todo = np.arange(end.size)
     hi = end + 1
-    width = 64
-    while hi > 0:
-        lo = max(0, hi - width)
-        away = np.flatnonzero(np.abs(ys[lo:hi] - level) > band)
-        if away.size:
-            return lo + int(away[-1]) + 1
-        hi, width = lo, 4 * width
-    return 0
+    width = FIRST_LOOK
+    while todo.size:
+        pos = hi[todo, None] + np.arange(-width, 0)[None, :]
+        away = (pos >= 0) & (np.abs(ys[np.maximum(pos, 0)] - level[todo, None])
+                             > band[todo, None])
+        found = away.any(axis=1)
+        last = width - 1 - away[found, ::-1].argmax(axis=1)
+        start[todo[found]] = pos[found, last] + 1
+        more = ~found & (pos[:, 0] > 0)
+        todo = todo[more]
+        hi[todo] -= width
+        width *= 4
+    return start
 
 
-def _spread(x: FloatArray) -> float:
-    """The 10-90 % spread of ``x`` (nearest-rank; cheaper than ``np.percentile``)."""
-    k = x.size - 1
-    lo, hi = round(0.1 * k), round(0.9 * k)
-    part = np.partition(x, (lo, hi))
-    return float(part[hi] - part[lo])
+def _spreads(x: FloatArray, lo: np.ndarray, hi: np.ndarray) -> FloatArray:
+    """The 10-90 % spread (nearest rank) of each ``x[lo[k]:hi[k]]``: rows of a matrix padded
+    with +inf, sorted (the ranks stay within each row's own values)."""
+    n = hi - lo
+    out = np.empty(n.size)
+    order = np.argsort(n, kind="stable")  # similar lengths together: little padding
+    for sl in row_chunks(n[order]):
+        rows = order[sl]
+        idx, mask = ragged(lo[rows], n[rows])
+        v = np.sort(np.where(mask, x[idx], np.inf), axis=1)
+        k = n[rows] - 1
+        r = np.arange(rows.size)
+        out[rows] = v[r, np.rint(0.9 * k).astype(np.intp)] - v[r, np.rint(0.1 * k).astype(np.intp)]
+    return out
 
 
-def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
-    """Find stick-slip episodes in a window of OP and PV (equal-length, finite)."""
+def _turns(us: FloatArray, lo: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """For each stretch ``us[lo[k]:end[k] + 1]``, the first index where ``us`` is furthest
+    from ``us[end[k]]``."""
+    n = end - lo + 1
+    out = np.empty(n.size, dtype=np.intp)
+    order = np.argsort(n, kind="stable")
+    for sl in row_chunks(n[order]):
+        rows = order[sl]
+        idx, mask = ragged(lo[rows], n[rows])
+        far = np.where(mask, np.abs(us[end[rows], None] - us[idx]), -1.0)
+        out[rows] = lo[rows] + far.argmax(axis=1)
+    return out
+
+
+def stick_slip(op: FloatArray, pv: FloatArray, *, noise: tuple[float, float] | None = None
+               ) -> StickSlip:
+    """Find stick-slip episodes in a window of OP and PV (equal-length, finite); ``noise``:
+    the white-noise SDs of OP and PV (:func:`~stiction._detect.noise_sd`), when the caller
+    has them."""
     found: list[Episode] = []
     if op.size < 5 * M + 2:
         return StickSlip((), True)
-    p2, p98 = np.percentile(pv, [2, 98])
-    noise = (noise_sd(pv), noise_sd(op), float(p98 - p2))
+    p2, p98 = percentiles(pv, (2.0, 98.0))
+    sd_op, sd_pv = noise or (noise_sd(op), noise_sd(pv))
     for m in SCALES:
         taken = np.array([f.at for f in found])
-        for e in _episodes(op, pv, m, noise):
-            if not np.any(np.abs(taken - e.at) < 2 * m):
-                found.append(e)
+        new = _episodes(op, pv, m, (sd_pv, sd_op, float(p98 - p2)))
+        if taken.size and new:
+            at = np.array([e.at for e in new])
+            clash = (np.abs(taken[None, :] - at[:, None]) < 2 * m).any(axis=1)
+            new = [e for e, c in zip(new, clash.tolist(), strict=True) if not c]
+        found.extend(new)
     found.sort(key=lambda e: e.at)
     signs = {math.copysign(1.0, e.jump) * math.copysign(1.0, e.op_travel) for e in found}
     return StickSlip(tuple(found), len(signs) <= 1)
@@ -153,47 +213,46 @@ def stick_slip(op: FloatArray, pv: FloatArray) -> StickSlip:
 def _episodes(op: FloatArray, pv: FloatArray, m: int, noise: tuple[float, float, float]
               ) -> list[Episode]:
     """The episodes seen with ``m``-sample means on either side of the slip; ``noise``: the
-    noise SDs of PV and OP and PV's 2-98 % range."""
+    noise SDs of PV and OP and PV's 2-98 % range. Every candidate slip is checked at once
+    (arrays over the candidates)."""
     n = op.size
     if n < 5 * m + 2:  # the means before and after, a stuck phase of 3 m
         return []
-    cy, ys = _means(pv, m)
-    cu, us = _means(op, m)
-    t = np.arange(m, n - m + 1)
-    dy = (cy[t + m] - 2.0 * cy[t] + cy[t - m]) / m  # mean after - mean before
-    du = (cu[t + m] - 2.0 * cu[t] + cu[t - m]) / m
     sd_y, sd_u, rng = noise
     thr = max(JUMP_NOISE * sd_y * math.sqrt(2.0 / m), JUMP_RANGE_FRACTION * rng)
     if thr <= 0:
         return []
-    found: list[Episode] = []
-    for i in _candidates(np.abs(dy), thr, m):
-        at = int(t[i])
-        d = float(dy[i])
-        pre = float((cy[at] - cy[at - m]) / m)
-        # the stuck phase: back from the slip while PV stays near its pre-slip level
-        start = _still_since(ys, at - m, pre, STUCK_BAND * abs(d))
-        # the force was built since OP's last turn: its extreme (furthest from the pre-slip
-        # OP) while PV stood still
-        end = at - m
-        lo = min(start + m // 2, end)
-        lo += int(np.argmax(np.abs(us[end] - us[lo : end + 1])))
-        stuck = end - lo
-        if stuck < 3 * m:
-            continue
-        # the cheap scalar checks first, the still-PV spread (a partition) last
-        travel = float(us[end] - us[lo])
-        step = float(du[i])
-        if abs(travel) < OP_NOISE * sd_u or abs(step) >= KICK_RATIO * abs(travel):
-            continue
-        if math.copysign(1.0, step) == math.copysign(1.0, travel) \
-                and abs(step) >= SAME_WAY_KICK * abs(travel):
-            continue
-        path = us[lo : end + 1 : m]
-        tv = float(np.sum(np.abs(np.diff(path)))) if path.size > 1 else 0.0
-        if tv <= 0 or abs(travel) < MONOTONE * tv:
-            continue
-        if _spread(ys[lo : end + 1]) > STILL_SPREAD * abs(d):
-            continue
-        found.append(Episode(at, d, travel, step, stuck))
-    return found
+    cy, ys = _means(pv, m)
+    # at sample t = m + i: mean after - mean before
+    dy = (cy[2 * m :] - 2.0 * cy[m : n - m + 1] + cy[: n - 2 * m + 1]) / m
+    cand = np.asarray(_candidates(np.abs(dy), thr, m), dtype=np.intp)
+    if cand.size == 0:
+        return []
+    cu, us = _means(op, m)
+    at = cand + m
+    d = dy[cand]
+    step = (cu[at + m] - 2.0 * cu[at] + cu[at - m]) / m
+    pre = (cy[at] - cy[at - m]) / m
+    # the stuck phase: back from the slip while PV stays near its pre-slip level
+    end = at - m
+    start = _still_since_all(ys, end, pre, STUCK_BAND * np.abs(d))
+    # the force was built since OP's last turn: its extreme (furthest from the pre-slip
+    # OP) while PV stood still
+    lo = _turns(us, np.minimum(start + m // 2, end), end)
+    stuck = end - lo
+    travel = us[end] - us[lo]
+    ok = ((stuck >= 3 * m) & (np.abs(travel) >= OP_NOISE * sd_u)
+          & (np.abs(step) < KICK_RATIO * np.abs(travel))
+          & ~((np.copysign(1.0, step) == np.copysign(1.0, travel))
+              & (np.abs(step) >= SAME_WAY_KICK * np.abs(travel))))
+    # OP monotone over the stuck phase (m-sample means), then PV still over it
+    k = np.flatnonzero(ok)
+    steps = (stuck[k] // m).astype(np.intp)  # path points us[lo], us[lo + m], ... after the first
+    path = lo[k, None] + m * np.arange(int(steps.max(initial=0)) + 1)[None, :]
+    hop = np.where(np.arange(path.shape[1] - 1)[None, :] < steps[:, None],
+                   np.abs(np.diff(us[np.minimum(path, n - 1)], axis=1)), 0.0)
+    tv = hop.sum(axis=1)
+    k = k[(tv > 0) & (np.abs(travel[k]) >= MONOTONE * tv)]
+    k = k[_spreads(ys, lo[k], end[k] + 1) <= STILL_SPREAD * np.abs(d[k])]
+    return [Episode(*fields) for fields in zip(at[k].tolist(), d[k].tolist(), travel[k].tolist(),
+                                               step[k].tolist(), stuck[k].tolist(), strict=True)]

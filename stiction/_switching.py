@@ -28,9 +28,9 @@ import math
 import numpy as np
 from scipy import optimize, signal
 
-from ._segments import closed_rss, exp_basis, ragged, row_chunks, sums2
+from ._segments import closed_rss, exp_basis, ragged, row_chunks
 from ._smooth import smooth
-from ._validate import FloatArray
+from ._validate import FloatArray, percentiles
 
 __all__ = ["Switches", "departures", "find_switches", "fitted_curve"]
 
@@ -59,7 +59,7 @@ class Switches:
 def _extrema(z: FloatArray, period: float) -> np.ndarray:
     """Alternating peaks and valleys of the smoothed ``z`` (indices), at least a quarter
     period apart and with a prominence of 30 % of its range."""
-    p2, p98 = np.percentile(z, [2, 98])
+    p2, p98 = percentiles(z, (2.0, 98.0))
     span = float(p98 - p2)
     dist = max(1, int(period / 4))
     pk, _ = signal.find_peaks(z, prominence=PROMINENCE * span, distance=dist)
@@ -104,7 +104,7 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
     sign[-1] = 1.0
     idx, mask = ragged(ext, nxt - ext + 1)
     near = mask & (sign[:, None] * (ze[:, None] - z[idx]) <= (0.05 * swing)[:, None])
-    pos = idx.shape[1] - 1 - np.argmax(near[:, ::-1], axis=1)  # last such sample
+    pos = idx.shape[1] - 1 - near[:, ::-1].argmax(axis=1)  # last such sample
     keep = np.ones(ext.size, dtype=bool)
     keep[-1] = pos[-1] != nxt[-1] - ext[-1]  # PV never leaves the last plateau: no onset
     return np.asarray((ext + pos)[keep] * m + m // 2, dtype=np.intp)
@@ -151,28 +151,28 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
     tiny = 1e-12 * n_k * n_k
     mean_fit = sy * sy / n_k
 
+    keep = max(1, (3 * lengths.size + 3) // 4)
+    planes = np.empty((3, yy.size))  # g, g^2, y g: one reduceat for the three sums
+    g, gg, yg = planes
+
     def total(log_tau: float) -> float:
-        g = np.exp(neg_t / math.exp(log_tau))
-        sg = np.add.reduceat(g, starts)
-        sgg = np.add.reduceat(g * g, starts)
-        syg = np.add.reduceat(yy * g, starts)
+        np.divide(neg_t, math.exp(log_tau), out=g)
+        np.exp(g, out=g)
+        np.multiply(g, g, out=gg)
+        np.multiply(yy, g, out=yg)
+        sg, sgg, syg = np.add.reduceat(planes, starts, axis=1)
         det = n_k * sgg - sg * sg
         ok = det > tiny
-        fit = np.where(
-            ok,
-            (sy * (sgg * sy - sg * syg) + syg * (n_k * syg - sg * sy)) / np.where(ok, det, 1.0),
-            mean_fit,
-        )
+        num = sy * (sgg * sy - sg * syg) + syg * (n_k * syg - sg * sy)
+        fit = num / det if ok.all() else np.where(ok, num / np.where(ok, det, 1.0), mean_fit)
         # trimmed: the worst quarter of the half cycles (a misplaced switch, a double
         # jump) must not drag the time constant
-        per = np.sort((syy - fit) / n_k)
-        return float(np.sum(per[: max(1, (3 * per.size + 3) // 4)]))
+        per = (syy - fit) / n_k
+        per.sort()
+        return float(per[:keep].sum())
 
-    res = optimize.minimize_scalar(
-        total, bounds=(math.log(0.2), math.log(20.0 * period)), method="bounded",
-        options={"xatol": 1e-3},
-    )
-    return math.exp(float(res.x))
+    log_tau = optimize.fminbound(total, math.log(0.2), math.log(20.0 * period), xtol=1e-3)
+    return math.exp(float(log_tau))
 
 
 def _basis(t: FloatArray, t0: FloatArray, tau: float | None) -> FloatArray:
@@ -231,17 +231,28 @@ def _refine_rows(y: FloatArray, ends: tuple[np.ndarray, ...],
     k = lo.size
     both = np.concatenate((ref_l, ref_r))
     bulk = _interval_sums(y, np.concatenate((lo, c_hi)), np.concatenate((c_lo, hi)), both, tau)
-    cand, mc = ragged(c_lo, c_hi - c_lo)
+    lengths = c_hi - c_lo
+    cand, mc = ragged(c_lo, lengths)
     t = cand.astype(np.float64)
-    part = sums2(_basis(np.concatenate((t, t)), both, tau), np.tile(y[cand], (2, 1)))
-    part *= np.tile(mc, (2, 1))
-    sums = np.empty_like(part)
-    sums[:, :k, 0] = 0.0
-    np.cumsum(part[:, :k, :-1], axis=2, out=sums[:, :k, 1:])  # left: over [c_lo, c)
-    np.cumsum(part[:, k:, ::-1], axis=2, out=sums[:, k:, ::-1])  # right: over [c, c_hi)
+    # planes g, g^2, y, y g, y^2 of the candidates (padding zero); the counts need no sums
+    g = _basis(np.concatenate((t, t)), both, tau)
+    m2 = np.tile(mc, (2, 1))
+    part = np.empty((5, *g.shape))
+    np.multiply(g, m2, out=part[0])
+    np.multiply(part[0], part[0], out=part[1])
+    np.multiply(np.tile(y[cand], (2, 1)), m2, out=part[2])
+    np.multiply(part[2], g, out=part[3])
+    np.multiply(part[2], part[2], out=part[4])
+    sums = np.empty((6, *g.shape))
+    col = np.arange(g.shape[1])
+    sums[0, :k] = np.minimum(col[None, :], lengths[:, None])
+    sums[0, k:] = np.maximum(lengths[:, None] - col[None, :], 0)
+    sums[1:, :k, 0] = 0.0
+    np.cumsum(part[:, :k, :-1], axis=2, out=sums[1:, :k, 1:])  # left: over [c_lo, c)
+    np.cumsum(part[:, k:, ::-1], axis=2, out=sums[1:, k:, ::-1])  # right: over [c, c_hi)
     sums += bulk[..., None]
     r, a, b = closed_rss(sums)
-    best = np.argmin(np.where(mc, r[:k] + r[k:], np.inf), axis=1)
+    best = np.where(mc, r[:k] + r[k:], np.inf).argmin(axis=1)
     rows = np.arange(k)
     near = cand[rows, best].astype(np.float64)
     return _meet((a[rows, best], b[rows, best], ref_l),
@@ -278,8 +289,8 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     kinks = departures(pv, period)
     if kinks.size < 3:
         return None
-    scale = float(np.std(pv)) or 1.0
-    y = (pv - float(np.mean(pv))) / scale
+    scale = float(pv.std()) or 1.0
+    y = (pv - float(pv.mean())) / scale
     guard = max(2, round(0.02 * period))
     tau: float | None = None
     if not integrating:
@@ -306,7 +317,7 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     c = np.floor(onsets).astype(np.intp)
     bounds = np.column_stack((c[:-1] + 1, c[1:] + 1))
     a, b, r, cnt = _segment_sums(y, bounds, onsets[:-1], tau)
-    mean = float(np.mean(pv))
+    mean = float(pv.mean())
     return Switches(onsets, a * scale + mean, b * scale, r * scale * scale, cnt, tau)
 
 
