@@ -2,23 +2,18 @@
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
 import pytest
+from detector_fixtures import cached_sim
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stiction import Evidence, ParameterError
 from stiction._ellipse import THIN, ellipse_band
 from stiction._oscillation import detect_oscillation
-from stiction.scenarios import SimResult, scenario, simulate
-
-
-@functools.cache
-def _sim(name: str, noise: float, seed: int, **kw: float) -> SimResult:
-    return simulate(scenario(name, **kw), noise=noise, seed=seed)
+from stiction.scenarios import SimResult
 
 
 def _window(res: SimResult, skip: int = 200) -> tuple[np.ndarray, np.ndarray, float]:
@@ -76,7 +71,7 @@ def test_integrating_pattern_uses_the_rate_of_change_of_pv() -> None:
 def test_sticky_flow_loop_band_within_15_percent(noise: float, seed: int) -> None:
     """He & Wang's Table 4 case 2 (fs 0.30, fd 0.27, K 1.99): the band is the OP swing
     between jumps, S = 2 fs - J = 54 % of span, within 15 %. The shape does not call it."""
-    res = _sim("table4-case2", noise, seed)
+    res = cached_sim("table4-case2", noise, seed)
     op, pv, period = _window(res)
     fit = ellipse_band(op, pv, period=period)
     assert fit.band is not None
@@ -91,7 +86,7 @@ def test_sticky_flow_loop_band_within_15_percent(noise: float, seed: int) -> Non
 def test_sticky_level_loop_band_within_25_percent(seed: int) -> None:
     """Table 5 case 2 (integrating): OP against dPV/dt; the band within 25 % of S (OP's
     proportional kicks carry part of its swing)."""
-    res = _sim("table5-case2", 0.05, seed)
+    res = cached_sim("table5-case2", 0.05, seed)
     op, pv, period = _window(res, skip=800)
     fit = ellipse_band(op, pv, period=period, integrating=True)
     assert fit.band is not None
@@ -102,7 +97,7 @@ def test_sticky_level_loop_band_within_25_percent(seed: int) -> None:
 @pytest.mark.parametrize(("noise", "seed", "load_sd"),
                          [(0.05, 1, 0.0), (0.05, 2, 0.0), (0.2, 1, 0.02), (0.2, 2, 0.02)])
 def test_aggressive_tuning_is_a_thin_ellipse(noise: float, seed: int, load_sd: float) -> None:
-    res = _sim("aggressive-tuning", noise, seed, load_sd=load_sd or 0.01)
+    res = cached_sim("aggressive-tuning", noise, seed, load_sd=load_sd or 0.01)
     op, pv, period = _window(res)
     fit = ellipse_band(op, pv, period=period)
     assert fit.vote == -1, fit
@@ -119,7 +114,7 @@ def test_linear_loops_never_say_yes(name: str, kw: dict[str, float]) -> None:
     """Wide ellipses from a disturbance are the controller's doing: the test gives a band
     and no vote for stiction."""
     for seed in (1, 2):
-        res = _sim(name, 0.05, seed, **kw)
+        res = cached_sim(name, 0.05, seed, **kw)
         op, pv = res.op[200:], res.pv[200:]
         osc = detect_oscillation(op)
         period = osc.period if osc.oscillating and osc.period else 600.0
@@ -131,7 +126,7 @@ def test_linear_loops_never_say_yes(name: str, kw: dict[str, float]) -> None:
 
 
 def test_units_do_not_matter_and_the_band_scales_with_op() -> None:
-    res = _sim("table4-case2", 0.05, 1)
+    res = cached_sim("table4-case2", 0.05, 1)
     op, pv, period = _window(res)
     a = ellipse_band(op, pv, period=period)
     b = ellipse_band(7.0 * op + 300.0, 0.01 * pv - 5.0, period=period)
@@ -174,7 +169,7 @@ def test_bad_parameters_name_the_argument() -> None:
 
 
 def test_evidence() -> None:
-    res = _sim("aggressive-tuning", 0.05, 1, load_sd=0.01)
+    res = cached_sim("aggressive-tuning", 0.05, 1, load_sd=0.01)
     op, pv, period = _window(res)
     fit = ellipse_band(op, pv, period=period)
     ev = fit.evidence()

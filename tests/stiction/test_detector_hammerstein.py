@@ -2,37 +2,24 @@
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
+from detector_fixtures import cached_sim, op_period
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import signal
 
 from stiction import Evidence, ParameterError
 from stiction._hammerstein import controller_sign, hammerstein_test
-from stiction._oscillation import detect_oscillation
-from stiction.scenarios import SimResult, scenario, simulate
-
-
-@functools.cache
-def _sim(name: str, noise: float, seed: int, **kw: float) -> SimResult:
-    return simulate(scenario(name, **kw), noise=noise, seed=seed)
-
-
-def _period(op: np.ndarray) -> float | None:
-    osc = detect_oscillation(op)
-    return osc.period if osc.oscillating else None
 
 
 @pytest.mark.parametrize(("noise", "seed"), [(0.05, 1), (0.05, 2), (0.5, 1), (0.5, 2)])
 def test_sticky_flow_loop_says_yes_and_sizes_the_valve(noise: float, seed: int) -> None:
     """He & Wang's Table 4 case 2 (fs 0.30, fd 0.27, K 1.99; OP in % of span): fd within
     20 %, fs within 25 % (J is seen only through the valve following OP beyond a jump)."""
-    res = _sim("table4-case2", noise, seed)
+    res = cached_sim("table4-case2", noise, seed)
     op, pv = res.op[200:], res.pv[200:]
-    fit = hammerstein_test(op, pv, ts=1.0, period=_period(op))
+    fit = hammerstein_test(op, pv, ts=1.0, period=op_period(op))
     assert fit.vote == 1, fit
     assert fit.improvement is not None and fit.improvement >= 0.5
     assert fit.rss_sticky is not None and fit.rss_sticky <= 0.1
@@ -48,9 +35,9 @@ def test_sticky_flow_loop_says_yes_and_sizes_the_valve(noise: float, seed: int) 
 def test_sticky_level_loop_says_yes(seed: int) -> None:
     """Table 5 case 2, integrating: fitted on PV's first difference; fd within 10 %, fs
     within 15 %."""
-    res = _sim("table5-case2", 0.05, seed)
+    res = cached_sim("table5-case2", 0.05, seed)
     op, pv = res.op[800:], res.pv[800:]
-    fit = hammerstein_test(op, pv, ts=1.0, period=_period(op), integrating=True)
+    fit = hammerstein_test(op, pv, ts=1.0, period=op_period(op), integrating=True)
     assert fit.vote == 1, fit
     assert fit.fd == pytest.approx(27.0, rel=0.10)
     assert fit.fs == pytest.approx(30.0, rel=0.15)
@@ -60,9 +47,9 @@ def test_sticky_level_loop_says_yes(seed: int) -> None:
 def test_sticky_slow_loop_says_yes() -> None:
     """Table 6, tau 120 s, period about 2,100 s: the fit sees the valve through a slow
     process (sizes there are up to 30 % low: the band trades off against the dead time)."""
-    res = _sim("table6", 0.05, 1, tau=120.0)
+    res = cached_sim("table6", 0.05, 1, tau=120.0)
     op, pv = res.op[200:], res.pv[200:]
-    fit = hammerstein_test(op, pv, ts=1.0, period=_period(op))
+    fit = hammerstein_test(op, pv, ts=1.0, period=op_period(op))
     assert fit.vote == 1, fit
 
 
@@ -74,10 +61,11 @@ def test_healthy_loops_with_random_loads_never_say_yes(load_sd: float, load_tau:
     """A good valve under a random load: with the detected period when there is one, and
     with periods forced on it (the caller's period may come from another loop)."""
     for noise, seed in ((0.05, 1), (0.2, 2)):
-        res = _sim("healthy", noise, seed, load_sd=load_sd, load_tau=load_tau, duration=4000.0)
+        res = cached_sim("healthy", noise, seed, load_sd=load_sd, load_tau=load_tau,
+                         duration=4000.0)
         for step in (1, 10):
             op, pv = res.op[400::step], res.pv[400::step]
-            for period in (_period(op), 300.0 / step, 1200.0 / step):
+            for period in (op_period(op), 300.0 / step, 1200.0 / step):
                 if period is None:
                     continue
                 fit = hammerstein_test(op, pv, ts=float(step), period=period)
@@ -98,9 +86,9 @@ def test_linear_oscillations_say_no(name: str, kw: dict[str, float]) -> None:
     sticky valve's extra freedom may take a little of that load (no -1 then), never +1."""
     votes = []
     for noise, seed in ((0.05, 1), (0.2, 2)):
-        res = _sim(name, noise, seed, duration=4000.0, **kw)
+        res = cached_sim(name, noise, seed, duration=4000.0, **kw)
         op, pv = res.op[200:], res.pv[200:]
-        fit = hammerstein_test(op, pv, ts=1.0, period=_period(op))
+        fit = hammerstein_test(op, pv, ts=1.0, period=op_period(op))
         votes.append(fit.vote)
         assert fit.vote <= 0, (noise, seed, fit)
         if fit.vote == -1:
@@ -138,16 +126,16 @@ def test_op_drifting_with_pv_on_setpoint_is_no_stiction() -> None:
         fit = hammerstein_test(op, pv, ts=1.0, period=period)
         assert fit.vote != 1, fit
     # and the simulated version: a healthy loop under a large slow load
-    res = _sim("healthy", 0.05, 3, load_sd=0.05, load_tau=3000.0, duration=4000.0)
+    res = cached_sim("healthy", 0.05, 3, load_sd=0.05, load_tau=3000.0, duration=4000.0)
     for period in (300.0, 900.0):
         fit = hammerstein_test(res.op[400:], res.pv[400:], ts=1.0, period=period)
         assert fit.vote != 1, fit
 
 
 def test_units_do_not_matter_and_sizes_scale() -> None:
-    res = _sim("table4-case2", 0.05, 1)
+    res = cached_sim("table4-case2", 0.05, 1)
     op, pv = res.op[200:], res.pv[200:]
-    period = _period(op)
+    period = op_period(op)
     a = hammerstein_test(op, pv, ts=1.0, period=period)
     b = hammerstein_test(7.0 * op + 300.0, 0.01 * pv - 5.0, ts=1.0, period=period)
     c = hammerstein_test(op, -pv, ts=1.0, period=period)  # reverse-acting process
@@ -164,10 +152,10 @@ def test_units_do_not_matter_and_sizes_scale() -> None:
 
 
 def test_sample_time_scales_times_only() -> None:
-    res = _sim("table4-case2", 0.05, 1)
+    res = cached_sim("table4-case2", 0.05, 1)
     op, pv = res.op[200:], res.pv[200:]
-    a = hammerstein_test(op, pv, ts=1.0, period=_period(op))
-    b = hammerstein_test(op, pv, ts=10.0, period=_period(op))
+    a = hammerstein_test(op, pv, ts=1.0, period=op_period(op))
+    b = hammerstein_test(op, pv, ts=10.0, period=op_period(op))
     assert (b.vote, b.improvement, b.fd) == (a.vote, a.improvement, a.fd)
     assert b.tau == pytest.approx(10.0 * a.tau, rel=1e-9)  # type: ignore[operator]
     assert b.dead_time == pytest.approx(10.0 * a.dead_time, rel=1e-9)  # type: ignore[operator]
@@ -218,9 +206,9 @@ def test_bad_parameters_name_the_argument() -> None:
 
 
 def test_evidence() -> None:
-    res = _sim("table4-case2", 0.05, 1)
+    res = cached_sim("table4-case2", 0.05, 1)
     op, pv = res.op[200:], res.pv[200:]
-    fit = hammerstein_test(op, pv, ts=1.0, period=_period(op))
+    fit = hammerstein_test(op, pv, ts=1.0, period=op_period(op))
     ev = fit.evidence()
     assert isinstance(ev, Evidence)
     assert (ev.test, ev.value, ev.vote, ev.note) == ("hammerstein", fit.improvement, fit.vote,
@@ -256,10 +244,10 @@ def test_setpoint_step_is_not_a_valve(name: str) -> None:
     for load_sd, load_tau in ((0.005, 30.0), (0.02, 600.0)):
         for step in (5.0, 15.0):
             for seed in (1, 2):
-                res = _sim(name, 0.05, seed, load_sd=load_sd, load_tau=load_tau,
+                res = cached_sim(name, 0.05, seed, load_sd=load_sd, load_tau=load_tau,
                            sp_step=step, sp_step_time=2000.0, duration=4000.0)
                 op, pv = res.op[400:], res.pv[400:]
-                for period in (_period(op), 300.0, 600.0):
+                for period in (op_period(op), 300.0, 600.0):
                     if period is None:
                         continue
                     fit = hammerstein_test(op, pv, ts=1.0, period=period)
@@ -271,9 +259,9 @@ def test_setpoint_step_is_not_a_valve(name: str) -> None:
 def test_controller_sign_from_the_integral_action(name: str) -> None:
     """The sign of the controller's action, whatever the valve and the units: OP in reverse
     acting units or PV of a reverse-acting process turn it round."""
-    res = _sim(name, 0.2, 1, load_sd=0.01, load_tau=60.0, duration=4000.0)
+    res = cached_sim(name, 0.2, 1, load_sd=0.01, load_tau=60.0, duration=4000.0)
     op, pv = res.op[200:], res.pv[200:]
-    for period in (_period(op) or 300.0, 100.0, 600.0):
+    for period in (op_period(op) or 300.0, 100.0, 600.0):
         assert controller_sign(op, pv, period) == 1.0
         assert controller_sign(7.0 * op + 300.0, 0.01 * pv - 5.0, period) == 1.0
         assert controller_sign(100.0 - op, pv, period) == -1.0

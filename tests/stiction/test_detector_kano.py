@@ -2,28 +2,14 @@
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
+from detector_fixtures import cached_sim, op_period
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stiction import Evidence, ParameterError
 from stiction._kano import kano_test
-from stiction._oscillation import detect_oscillation
-from stiction.scenarios import SimResult, scenario, simulate
-
-
-@functools.cache
-def _sim(name: str, noise: float, seed: int, **kw: float) -> SimResult:
-    return simulate(scenario(name, **kw), noise=noise, seed=seed)
-
-
-def _period(op: np.ndarray) -> float | None:
-    osc = detect_oscillation(op)
-    return osc.period if osc.oscillating else None
-
 
 STICKY = [
     ("table4-case2", 0.05, 1, {}), ("table4-case2", 0.05, 2, {}),
@@ -36,9 +22,9 @@ STICKY = [
 @pytest.mark.parametrize(("name", "noise", "seed", "kw"), STICKY)
 def test_sticky_flow_and_slow_loops_say_yes(name: str, noise: float, seed: int,
                                             kw: dict[str, float]) -> None:
-    res = _sim(name, noise, seed, **kw)
+    res = cached_sim(name, noise, seed, **kw)
     op, pv = res.op[200:], res.pv[200:]
-    k = kano_test(op, pv, period=_period(op))
+    k = kano_test(op, pv, period=op_period(op))
     assert k.vote == 1, k
     assert k.index is not None
     assert k.index >= 0.25
@@ -51,9 +37,9 @@ def test_band_is_the_op_travel_while_stuck() -> None:
     """Table 4 case 2: OP travels S = 2 fs - J = 54 % between jumps; the stuck intervals
     start once PV has settled after a jump (a few time constants), so they hold a third to
     two thirds of it."""
-    res = _sim("table4-case2", 0.05, 1)
+    res = cached_sim("table4-case2", 0.05, 1)
     op, pv = res.op[200:], res.pv[200:]
-    k = kano_test(op, pv, period=_period(op))
+    k = kano_test(op, pv, period=op_period(op))
     assert k.band is not None
     assert 54.0 / 3 <= k.band <= 54.0 * 2 / 3
 
@@ -61,9 +47,9 @@ def test_band_is_the_op_travel_while_stuck() -> None:
 @pytest.mark.parametrize("seed", [1, 2])
 def test_integrating_loop_cannot_tell(seed: int) -> None:
     """In a level loop PV ramps while the valve is stuck: PV is no valve proxy, vote 0."""
-    res = _sim("table5-case2", 0.05, seed)
+    res = cached_sim("table5-case2", 0.05, seed)
     op, pv = res.op[800:], res.pv[800:]
-    k = kano_test(op, pv, period=_period(op))
+    k = kano_test(op, pv, period=op_period(op))
     assert k.vote == 0, k
     assert "no proxy" in k.note
 
@@ -85,10 +71,10 @@ def test_loops_without_stiction_never_say_yes(name: str, kw: dict[str, float]) -
     """Random loads, a sinusoidal disturbance, aggressive tuning; PV noise 0.05 and 0.2,
     1 s and 10 s sampling, the detected period or none."""
     for noise, seed in ((0.05, 1), (0.2, 2)):
-        res = _sim(name, noise, seed, duration=4000.0, **kw)
+        res = cached_sim(name, noise, seed, duration=4000.0, **kw)
         for step in (1, 10):
             op, pv = res.op[200::step], res.pv[200::step]
-            for period in (_period(op), None):
+            for period in (op_period(op), None):
                 k = kano_test(op, pv, period=period)
                 assert k.vote != 1, (noise, seed, step, period, k)
 
@@ -97,9 +83,9 @@ def test_loops_without_stiction_never_say_yes(name: str, kw: dict[str, float]) -
 def test_aggressive_tuning_says_no(seed: int) -> None:
     """PV is still much of the time (between swings of a fast cycle) but never while OP
     ramps: -1."""
-    res = _sim("aggressive-tuning", 0.05, seed)
+    res = cached_sim("aggressive-tuning", 0.05, seed)
     op, pv = res.op[200:], res.pv[200:]
-    k = kano_test(op, pv, period=_period(op))
+    k = kano_test(op, pv, period=op_period(op))
     assert k.vote == -1, k
 
 
@@ -129,9 +115,9 @@ def test_pv_on_setpoint_while_op_drifts_is_not_stuck() -> None:
 
 
 def test_units_do_not_matter() -> None:
-    res = _sim("table4-case2", 0.05, 1)
+    res = cached_sim("table4-case2", 0.05, 1)
     op, pv = res.op[200:], res.pv[200:]
-    period = _period(op)
+    period = op_period(op)
     a = kano_test(op, pv, period=period)
     b = kano_test(7.0 * op + 300.0, 0.01 * pv - 5.0, period=period)
     c = kano_test(op, -pv, period=period)  # reverse-acting process
@@ -172,9 +158,9 @@ def test_bad_parameters_name_the_argument() -> None:
 
 
 def test_evidence() -> None:
-    res = _sim("table4-case2", 0.05, 1)
+    res = cached_sim("table4-case2", 0.05, 1)
     op, pv = res.op[200:], res.pv[200:]
-    k = kano_test(op, pv, period=_period(op))
+    k = kano_test(op, pv, period=op_period(op))
     ev = k.evidence()
     assert isinstance(ev, Evidence)
     assert (ev.test, ev.value, ev.vote, ev.note) == ("kano", k.index, k.vote, k.note)
