@@ -37,6 +37,7 @@ import numpy as np
 import pytest
 import yaml
 from deploy_support import REPO, require_tool
+from detector_fixtures import write_loop_csv
 from hostile_support import (
     alive,
     anchor_bomb,
@@ -64,7 +65,6 @@ from gateway.outputs.statefile import StateFile
 from gateway.runtime.gateway import Gateway
 from gateway.wire.results import decode_block
 from stiction.cli import main as stiction_main
-from stiction.scenarios import simulate
 
 LATIN1_COMMENT = b"# Temperatur in \xb0C (saved on Windows)\n"
 
@@ -777,11 +777,7 @@ def test_every_verdict_change_is_logged_once_with_its_reason(
 
 @pytest.fixture(scope="module")
 def loop_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    res = simulate("table4-case2", noise=0.02, seed=4)
-    path = tmp_path_factory.mktemp("hostile-cli") / "loop.csv"
-    rows = np.column_stack([res.t, res.op, res.pv])
-    np.savetxt(path, rows, delimiter=",", header="t,op,pv", comments="", fmt="%.9g")
-    return path
+    return write_loop_csv(tmp_path_factory.mktemp("hostile-cli"))
 
 
 @pytest.mark.timeout(120)

@@ -7,21 +7,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from detector_fixtures import write_loop_csv
 
 from stiction import Assessment, Verdict, cli
 from stiction._paper import PAPER_ROWS
 from stiction.cli import main
 from stiction.reproduce import reproduce
-from stiction.scenarios import simulate
 
 
 @pytest.fixture(scope="module")
 def loop_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    res = simulate("table4-case2", noise=0.02, seed=4)
-    path = tmp_path_factory.mktemp("cli") / "loop.csv"
-    rows = np.column_stack([res.t, res.op, res.pv])
-    np.savetxt(path, rows, delimiter=",", header="t,op,pv", comments="", fmt="%.9g")
-    return path
+    return write_loop_csv(tmp_path_factory.mktemp("cli"))
 
 
 def _write(tmp_path: Path, text: str) -> Path:
