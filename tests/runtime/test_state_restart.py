@@ -8,7 +8,10 @@ tests/outputs/test_statefile.py.)"""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
+import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -22,6 +25,7 @@ from reliability_helpers import FAKE, until
 from gateway.config import parse_config
 from gateway.core.points import Quality
 from gateway.inputs.memory import memory_device
+from gateway.outputs import statefile
 from gateway.outputs.statefile import StateFile, read_state
 from gateway.runtime.gateway import Gateway
 
@@ -98,3 +102,43 @@ def test_gateway_starts_and_polls_with_a_corrupt_state_file(tmp_path: Path) -> N
     assert len(list(tmp_path.glob("gw.state.corrupt-*"))) == 1
     header, _ = read_state(state)  # a fresh, good file was written at exit
     assert header["version"] == 1
+
+
+def test_a_write_cancelled_at_stop_finishes_before_the_final_one(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Stopping cancels the periodic write while its thread writes on; the final write
+    waits for it (the two once shared one temporary file: 'final write failed' in one run
+    of the hostile test, or a torn file)."""
+    state = tmp_path / "gw.state"
+    harness = Harness(parse_config(_raw(state), "t"))
+    inside: list[int] = []
+    overlapped: list[bool] = []
+    writing = threading.Event()
+    real_write = statefile.write_state
+
+    def slow_write(*args: Any) -> int:
+        overlapped.append(bool(inside))
+        inside.append(1)
+        writing.set()
+        try:
+            time.sleep(0.3)
+            return real_write(*args)
+        finally:
+            inside.pop()
+
+    monkeypatch.setattr(statefile, "write_state", slow_write)
+
+    async def go() -> dict[str, Any]:
+        await harness.tick(10)
+        sink = StateFile(harness.runtime.binding(), wall=lambda: harness.time.wall)
+        periodic = asyncio.create_task(sink.save())
+        assert await asyncio.to_thread(writing.wait, 5)  # its thread is writing
+        periodic.cancel()  # as stop() cancels the periodic task
+        with contextlib.suppress(asyncio.CancelledError):
+            await periodic
+        await sink.save(final=True)
+        return read_state(state)[0]
+
+    header = asyncio.run(go())
+    assert overlapped == [False, False]  # two writes, one after the other
+    assert header["clean"] is True  # the final write is the file that stayed

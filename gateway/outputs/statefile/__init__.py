@@ -65,7 +65,15 @@ class StateFile:
             header, arrays = snapshot(b.config, b.groups, b.store, wall=wall,
                                       proc=b.clock.now(wall), clean=final)
             t0 = time.perf_counter()
-            size = await asyncio.to_thread(write_state, self.path, header, arrays)
+            write = asyncio.ensure_future(
+                asyncio.to_thread(write_state, self.path, header, arrays))
+            try:
+                size = await asyncio.shield(write)
+            except asyncio.CancelledError:
+                # the thread writes on: hold the lock until its file is in place, or the
+                # next write (the final one at stop) would share its temporary file
+                await asyncio.wait([write])
+                raise
             self.last_save_s = time.perf_counter() - t0
             self.saves += 1
             log.debug("state file %s: %d bytes in %.3f s", self.path, size, self.last_save_s)
