@@ -6,15 +6,18 @@ PYTHON ?= python3
 # marked `timing` run alone afterwards
 TEST_WORKERS ?= 4
 VENV   := .venv
-BIN    := $(VENV)/bin
-STAMP  := $(VENV)/.installed
+BIN     = $(VENV)/bin
+STAMP   = $(VENV)/.installed
+# the exact versions make test, make demo and the wheelhouse install (docs/install.md) use;
+# `make lock` renews it from the newest releases, `make test-latest` tries them first
+LOCK   := constraints.txt
 
-.PHONY: demo test lint typecheck bench soak clean
+.PHONY: demo test lint typecheck bench soak clean lock test-latest
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[dev,plot]'
+	$(BIN)/pip install --quiet --constraint $(LOCK) --upgrade pip
+	$(BIN)/pip install --quiet --constraint $(LOCK) -e '.[dev,plot]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -38,5 +41,27 @@ bench: $(STAMP)
 soak: $(STAMP)
 	$(BIN)/python -m bench.soak
 
+# the newest release of every dependency (no lock) in .venv-latest, then the whole suite:
+# what `make lock` would bring in, before it is committed
+test-latest:
+	rm -rf .venv-latest
+	$(PYTHON) -m venv .venv-latest
+	.venv-latest/bin/pip install --quiet --upgrade pip
+	.venv-latest/bin/pip install --quiet -e '.[dev,plot]'
+	touch .venv-latest/.installed
+	$(MAKE) test VENV=.venv-latest
+
+# renew the lock: resolve pyproject's ranges afresh in a throw-away venv, pin what came
+lock:
+	rm -rf .venv-lock
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/pip install --quiet --upgrade pip
+	.venv-lock/bin/pip install --quiet '.[dev,plot]'
+	{ echo "# The exact versions a fresh install uses (make test, make demo, the wheelhouse)."; \
+	  echo "# Renewed by 'make lock'; 'make test-latest' shows what the newest would break."; \
+	  .venv-lock/bin/pip freeze --all --exclude stiction-gateway --exclude setuptools \
+	    --exclude wheel; } > $(LOCK)
+	rm -rf .venv-lock
+
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .venv-latest .venv-lock build *.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -19,6 +19,7 @@ Every error names the file and, where it helps, the line; none prints a value.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from typing import Any
 
 import yaml
@@ -90,7 +91,7 @@ def check_shape(text: str, source: str) -> None:
     sizes: dict[str, int] = {}  # anchor -> expanded size of its node
     open_: list[tuple[str | None, int]] = []  # (anchor, total when the collection began)
     total = aliases = 0
-    for ev in yaml.parse(text, Loader=_BaseLoader):
+    for ev in _events(text, source):
         if isinstance(ev, events.AliasEvent):
             aliases += 1
             if aliases > MAX_ALIASES:
@@ -112,6 +113,22 @@ def check_shape(text: str, source: str) -> None:
         if total > MAX_NODES:
             _refuse(source, ev, f"more than {MAX_NODES:,} values once its aliases are "
                     f"expanded ({aliases:,} aliases so far)")
+
+
+def _events(text: str, source: str) -> Iterator[events.Event]:
+    """The parser's events of ``text``. libyaml (PyYAML 6.0.4 and newer) has a nesting limit
+    of its own that its scanner applies before the first event reaches the loop above: that
+    refusal is reported as ours, so the message does not depend on the parser's version."""
+    try:
+        yield from yaml.parse(text, Loader=_BaseLoader)
+    except yaml.MarkedYAMLError as exc:
+        if "nesting depth" not in (exc.problem or ""):
+            raise
+        mark = exc.problem_mark
+        where = f"line {mark.line + 1}: " if mark is not None else ""
+        raise ConfigError([f"{source}: {where}the document has collections nested more "
+                           f"than {MAX_DEPTH} deep; a config has far fewer (see "
+                           "docs/reliability.md, config file limits)"]) from None
 
 
 def _refuse(source: str, ev: events.Event, what: str) -> None:
