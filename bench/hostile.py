@@ -1,7 +1,11 @@
-"""Red-team benchmark (issue 15): the gateway under 2,000 half-open connections and 2,000
-garbage frames, with the open-files limit of the systemd unit.
+"""Red-team benchmarks: issue 15 (here) and issue 22 (bench/_hostile22.py, run after it).
 
-``python -m bench hostile``. Processes: a simulated PLC (20 loops over Modbus, Ts 0.5 s),
+Issue 15: the gateway under 2,000 half-open connections and 2,000 garbage frames, with the
+open-files limit of the systemd unit.
+
+``python -m bench hostile`` runs both; ``BENCH_HOSTILE=22`` (or ``15``) only one.
+
+Issue 15's processes: a simulated PLC (20 loops over Modbus, Ts 0.5 s),
 the gateway (``stiction-gateway run``, ``RLIMIT_NOFILE`` = the unit's ``LimitNOFILE``, state
 written every 2 s), an honest SCADA client in this process (one connection, 20 registers
 every 50 ms) and the attacker in its own process. Three phases of 12 s: *before*, *during*
@@ -23,12 +27,10 @@ import os
 import random
 import resource
 import signal
-import socket
 import struct
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import urllib.request
 from pathlib import Path
@@ -37,6 +39,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from bench._attacks import Scada
 from bench._net import free_port, wait_port
 
 UNIT = Path(__file__).resolve().parents[1] / "deploy" / "systemd" / "stiction-gateway.service"
@@ -151,45 +154,6 @@ def _attack_process(host: str, ports: tuple[int, int], conn: Any) -> None:
 # ------------------------------------------------------------------------ the honest side
 
 
-class Honest(threading.Thread):
-    """A SCADA client: one connection, 20 registers every 50 ms, reconnecting if closed."""
-
-    def __init__(self, port: int) -> None:
-        super().__init__(daemon=True)
-        self.port = port
-        self.latencies: list[float] = []
-        self.failures = 0
-        self.reconnects = 0
-        self.stop = threading.Event()
-
-    def run(self) -> None:
-        sock: socket.socket | None = None
-        k = 0
-        while not self.stop.is_set():
-            try:
-                if sock is None:
-                    sock = socket.create_connection(("127.0.0.1", self.port), timeout=5)
-                    self.reconnects += 1
-                k = (k + 1) & 0xFFFF
-                t0 = time.perf_counter()
-                sock.sendall(struct.pack(">HHHBBHH", k, 0, 6, 1, 3, 0, 20))
-                reply = b""
-                while len(reply) < 49:
-                    chunk = sock.recv(4096)
-                    if not chunk:
-                        raise ConnectionError("closed")
-                    reply += chunk
-                self.latencies.append(time.perf_counter() - t0)
-            except OSError:
-                self.failures += 1
-                if sock is not None:
-                    sock.close()
-                sock = None
-            time.sleep(0.05)
-        if sock is not None:
-            sock.close()
-
-
 def _scrape(port: int) -> tuple[float, str]:
     t0 = time.perf_counter()
     try:
@@ -252,9 +216,9 @@ def _plc(tmp: Path) -> subprocess.Popen[bytes]:
                             stderr=subprocess.DEVNULL)
 
 
-def _phase(name: str, gw: subprocess.Popen[bytes], honest: Honest, *, ports: dict[str, int],
+def _phase(name: str, gw: subprocess.Popen[bytes], honest: Scada, *, ports: dict[str, int],
            state: Path, log: Path, attacker: Any = None, during: Any = None) -> dict[str, Any]:
-    lat0, fail0 = len(honest.latencies), honest.failures
+    lat0 = len(honest.latency)
     log0 = log.stat().st_size
     writes, last = 0, state.stat().st_mtime_ns if state.exists() else 0
     t_end = time.monotonic() + PHASE_S
@@ -269,10 +233,11 @@ def _phase(name: str, gw: subprocess.Popen[bytes], honest: Honest, *, ports: dic
         if during is not None and time.monotonic() >= half:
             extra, during = during(), None
     scrape_s, text = _scrape(ports["metrics"])
-    lat = np.array(honest.latencies[lat0:]) * 1e3
+    answers = np.array(honest.latency[lat0:]) * 1e3
+    lat = answers[np.isfinite(answers)]
     row = {"phase": name, "modbus": _sample(text, 'stiction_server_connections{server="modbus"}'),
            "metrics": _sample(text, 'stiction_server_connections{server="metrics"}'),
-           "fds": max(fds), "reads": len(lat), "failed": honest.failures - fail0,
+           "fds": max(fds), "reads": len(lat), "failed": int(np.isnan(answers).sum()),
            "p99": float(np.percentile(lat, 99)) if len(lat) else float("nan"),
            "max": float(lat.max()) if len(lat) else float("nan"), "scrape": scrape_s,
            "writes": writes, "rss": _rss_mib(gw.pid), "log": log.stat().st_size - log0,
@@ -301,7 +266,7 @@ def run() -> list[dict[str, Any]]:
             gw = subprocess.Popen([sys.executable, "-m", "gateway.cli", "run", "--config",
                                    str(cfg)], stdout=out, stderr=subprocess.STDOUT,
                                   preexec_fn=limit)  # noqa: PLW1509 - no other thread yet
-        honest = Honest(result_port)
+        honest = Scada(result_port, period_s=0.05, timeout_s=5.0)
         rows: list[dict[str, Any]] = []
         ctx = multiprocessing.get_context("spawn")
         conn, child = ctx.Pipe()
@@ -363,6 +328,16 @@ def run() -> list[dict[str, Any]]:
 
 
 def main() -> None:
+    only = os.environ.get("BENCH_HOSTILE")
+    if only in (None, "15"):
+        main15()
+    if only in (None, "22"):
+        from bench import _hostile22  # noqa: PLC0415
+
+        _hostile22.main()
+
+
+def main15() -> None:
     rows = run()
     nofile = rows[0]["nofile"]
     print(f"== hostile: {2 * HALF_OPEN:,} half-open connections and {2 * GARBAGE:,} garbage "

@@ -1,43 +1,80 @@
-"""TCP servers that bound their cost: a connection limit, an idle timeout, no thread per
-connection (asyncio protocols on the event loop). The Modbus result server and the simulated
+"""TCP servers that bound their cost and never hold the event loop: a connection limit, an
+idle timeout, bounded memory per connection and a budget of requests per event-loop turn
+(asyncio protocols, no thread per connection). The Modbus result server and the simulated
 PLC (:mod:`gateway.wire.registers`) and the metrics server
 (:mod:`gateway.outputs.prometheus.http`) are built on :class:`Listener`.
 
-* **Limit**: at most ``max_connections`` at once. A connection beyond it closes the one that
-  matters least: a connection that never completed a request before one that did, the one
-  idle longest first; one in the middle of a request is never closed. So a crowd of
-  half-open connections cannot lock out a client that polls.
-* **Idle timeout**: a connection with no byte received for ``idle_timeout_s`` is closed
-  (a half-open or trickling connection costs at most that long).
-* **Garbage**: a protocol closes a connection that sends what it cannot parse
-  (:meth:`Conn.drop` with reason ``protocol``).
-* **Writes**: a client that does not read its answers stops being read (asyncio flow
-  control), so its answers cannot pile up in memory.
+* **Turns**: a connection's requests are not answered where its bytes arrive; the listener
+  answers at most :data:`TURN_REQUESTS` requests per turn of the event loop, all its
+  connections together, and at most :data:`CONN_TURN_REQUESTS` of one connection before the
+  next ready one (round robin), then yields. Whatever clients send, a poll waiting for its
+  PLC's answer waits for at most one such turn per round trip (the pollers share this
+  event loop: docs/architecture.md, "Polling comes first").
+* **Memory**: at most ``Conn.in_limit`` bytes of requests are held per connection (reading
+  stops beyond; the kernel's buffers and then TCP flow control hold the rest); while more
+  than :data:`WRITE_HIGH_WATER` bytes of answers wait for a client to read them, none of its
+  requests is answered nor read (one answer may exceed it: a /metrics page is queued whole).
+* **Limit**: at most ``max_connections`` at once. A newcomer beyond it closes the connection
+  that costs the most (:meth:`Listener.victim`): first one that never completed a request
+  (a half-open connection, the longest idle first: reason ``limit``), then one whose
+  answers are queued unread (most bytes queued, then the oldest pending: ``unread``), then
+  the busiest (highest recent request rate: ``busiest``). A quiet client (a SCADA poller
+  reading once a second) is the last to go.
+* **Idle timeout**: a connection with no byte received for ``idle_timeout_s`` is closed,
+  unless an answer is being prepared for it (a half-open or trickling connection costs at
+  most that long).
+* **Garbage and faults**: a protocol closes a connection that sends what it cannot parse
+  (:meth:`Conn.drop`, reason ``protocol``). An exception while answering is logged through
+  :func:`report` (the log's rate limit keys it by place and type, never by its text),
+  counted in ``stats.errors`` and closes that connection (reason ``error``); it never
+  reaches the event loop.
 
-:class:`ListenerStats` counts accepted connections and those the server closed, by reason;
-the metrics output publishes them (``stiction_server_connections*``).
+:class:`ListenerStats` counts accepted connections, those the server closed by reason and
+the errors; the metrics output publishes them (``stiction_server_*``).
 """
 
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import dataclasses
+import logging
+import math
 import os
 import socket
 import time
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["CLOSE_REASONS", "REQUESTS_PER_TURN", "Conn", "Listener", "ListenerStats"]
+__all__ = ["CLOSE_REASONS", "CONN_TURN_REQUESTS", "ERROR_STAGES", "TURN_REQUESTS",
+           "WRITE_HIGH_WATER", "Conn", "Listener", "ListenerStats", "report"]
 
-CLOSE_REASONS = ("limit", "idle", "protocol")
-"""Why the server closed a connection: over the connection limit, idle too long, garbage."""
-WRITE_HIGH_WATER = 64 * 1024  # bytes of answers queued for a client before it is not read
+log = logging.getLogger("gateway.server")
+
+CLOSE_REASONS = ("limit", "unread", "busiest", "idle", "protocol", "error")
+"""Why the server closed a connection: for a newcomer over the connection limit (one that
+never completed a request; one whose answers were not read; the busiest), idle too long,
+garbage, an error while answering."""
+ERROR_STAGES = ("request", "render")
+"""Where a serving path failed: answering a request, rendering the metrics page."""
+WRITE_HIGH_WATER = 64 * 1024  # bytes of answers queued for a client before it is not served
 BACKLOG = 1024  # connections the kernel may queue for accepting: a burst is accepted (and
 # the least useful closed) rather than left to retry its SYN seconds later
 ACCEPT_BATCH = 16  # connections accepted per wake-up of the event loop
-REQUESTS_PER_TURN = 64  # requests one connection has answered before others get a turn
+TURN_REQUESTS = 32  # requests a listener answers per turn of the event loop, all clients
+CONN_TURN_REQUESTS = 4  # ... of which one client at most before the next one's turn
+RATE_TAU_S = 10.0  # time constant of a connection's request rate (eviction)
+RATE_MIN_AGE_S = 1.0  # a young connection's rate is counted over at least this long
+
+
+def report(server: str, place: str, exc: BaseException) -> None:
+    """Log an unexpected exception of a serving path once, with its traceback. The first
+    argument, the cause (server, place, exception type), is what the log's rate limit
+    (:mod:`gateway.runtime.logs`) counts by; the text, which may hold a client's bytes or
+    addresses, comes second and is cut short."""
+    text = " ".join(str(exc).split())[:200]
+    log.error("%s: %s", f"{server} server, {place}: {type(exc).__name__}", text, exc_info=exc)
 
 
 @dataclasses.dataclass
@@ -48,25 +85,34 @@ class ListenerStats:
     accepted: int = 0
     closed: dict[str, int] = dataclasses.field(
         default_factory=lambda: dict.fromkeys(CLOSE_REASONS, 0))
+    errors: dict[str, int] = dataclasses.field(
+        default_factory=lambda: dict.fromkeys(ERROR_STAGES, 0))
 
 
-class Conn(asyncio.Protocol):
-    """A connection served by a :class:`Listener`. Received bytes go to ``buffer``, then
-    :meth:`handle` (a subclass's) is called: it takes what it can from the buffer, calls
-    :meth:`begin`/:meth:`served` around a request and :meth:`drop` on garbage; after
-    :data:`REQUESTS_PER_TURN` requests it returns :meth:`later` (a client that pipelines
-    thousands of requests does not hold the event loop). The server it belongs to is
-    ``listener.owner``."""
+class Conn(asyncio.BufferedProtocol):
+    """A connection served by a :class:`Listener`. Received bytes go to ``buffer`` (at most
+    ``in_limit``); a subclass says when a request is complete (:meth:`ready`) and answers up
+    to ``n`` of them when the listener gives it a turn (:meth:`serve`), calling
+    :meth:`served` after writing their answers. ``busy`` marks an answer prepared elsewhere
+    (a rendering): no request of the connection is served meanwhile. The server it belongs
+    to is ``listener.owner``."""
+
+    in_limit = 4096
 
     def __init__(self, listener: Listener) -> None:
         self.listener = listener
         self.buffer = bytearray()
         self.transport: asyncio.Transport | None = None
-        self.last = listener.clock()
+        now = listener.clock()
+        self.born = self.last = now
         self.useful = False  # a complete request was answered on it
-        self.busy = False  # a request is being answered: never evicted
+        self.busy = False  # an answer is being prepared: not served, not swept
         self.closed = False
-        self._held: set[str] = set()  # why reading is paused: "write", "turn"
+        self.pending_since: float | None = None  # the oldest request not answered yet
+        self._held: set[str] = set()  # why reading is paused: "input", "write"
+        self._load, self._load_t = 0.0, now  # decayed count of answered requests
+
+    # ------------------------------------------------------------------ asyncio's side
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -78,53 +124,87 @@ class Conn(asyncio.Protocol):
         self.closed = True
         self.listener.forget(self)
 
+    def get_buffer(self, sizehint: int) -> memoryview:
+        return self.listener.chunk[:max(256, self.in_limit - len(self.buffer))]
+
+    def buffer_updated(self, nbytes: int) -> None:
+        now = self.listener.clock()
+        self.last = now
+        if self.pending_since is None:
+            self.pending_since = now
+        self.buffer += self.listener.chunk[:nbytes]
+        if len(self.buffer) >= self.in_limit:
+            self._hold("input")
+        self.listener.wake(self)
+
+    def pause_writing(self) -> None:  # the client does not read: stop serving it
+        self._hold("write")
+
+    def resume_writing(self) -> None:
+        self._release("write")
+        self.listener.wake(self)
+
     def _hold(self, why: str) -> None:
         self._held.add(why)
         if self.transport is not None and not self.closed:
             self.transport.pause_reading()
 
     def _release(self, why: str) -> None:
+        if why not in self._held:
+            return
         self._held.discard(why)
         if not self._held and self.transport is not None and not self.closed:
             self.transport.resume_reading()
 
-    def pause_writing(self) -> None:  # the client does not read: stop reading it
-        self._hold("write")
+    # ------------------------------------------------------------------ the protocol's side
 
-    def resume_writing(self) -> None:
-        self._release("write")
-
-    def later(self) -> None:
-        """Go on with the buffer on the event loop's next turn (reading paused until)."""
-        if "turn" in self._held:
-            return
-        self._hold("turn")
-
-        def go_on() -> None:
-            self._held.discard("turn")
-            if not self.closed:
-                self.handle()
-            if "turn" not in self._held:
-                self._release("turn")
-
-        asyncio.get_running_loop().call_soon(go_on)
-
-    def data_received(self, data: bytes) -> None:
-        self.last = self.listener.clock()
-        self.buffer += data
-        self.handle()
-
-    def handle(self) -> None:
-        """Take requests from ``buffer`` (subclasses)."""
+    def ready(self) -> bool:
+        """Whether ``buffer`` holds a request to answer (or garbage to refuse)."""
         raise NotImplementedError
 
-    def begin(self) -> None:
-        self.busy = True
+    def serve(self, n: int) -> int:
+        """Answer up to ``n`` requests from ``buffer``; returns how many were taken."""
+        raise NotImplementedError
 
-    def served(self) -> None:
-        self.busy = False
+    @property
+    def blocked(self) -> bool:
+        """Not to be served now: its answers are not read, or one is being prepared."""
+        return self.busy or "write" in self._held
+
+    def turn(self, n: int) -> int:
+        """:meth:`serve` for the listener; an exception closes this connection only."""
+        try:
+            used = self.serve(n)
+        except Exception as exc:  # a bug must cost one connection, never the event loop
+            self.listener.failed("request", exc)
+            self.drop("error")
+            return 1
+        if "input" in self._held and len(self.buffer) < self.in_limit:
+            self._release("input")
+        if not self.buffer and not self.busy:
+            self.pending_since = None
+        return used
+
+    def served(self, k: int = 1) -> None:
+        """``k`` requests were answered (their answers written)."""
+        now = self.listener.clock()
         self.useful = True
-        self.last = self.listener.clock()
+        self.last = now
+        self._load = self._load * math.exp((self._load_t - now) / RATE_TAU_S) + k
+        self._load_t = now
+
+    def rate(self, now: float) -> float:
+        """Requests answered per second lately (decayed over :data:`RATE_TAU_S`, a young
+        connection's counted over at least :data:`RATE_MIN_AGE_S`)."""
+        load = self._load * math.exp((self._load_t - now) / RATE_TAU_S)
+        span = RATE_TAU_S * -math.expm1((self.born - now) / RATE_TAU_S)
+        return load / max(span, RATE_MIN_AGE_S)
+
+    def queued(self) -> int:
+        """Bytes of answers written but not yet taken by the client (asyncio's buffer)."""
+        if self.transport is None or self.closed:
+            return 0
+        return int(self.transport.get_write_buffer_size())
 
     def write(self, data: bytes) -> None:
         if self.transport is not None and not self.closed:
@@ -151,7 +231,8 @@ class Listener:
     def __init__(self, name: str, factory: Callable[[Listener], Conn], *, host: str,
                  port: int, max_connections: int, idle_timeout_s: float, owner: Any = None,
                  clock: Callable[[], float] = time.monotonic,
-                 stats: ListenerStats | None = None) -> None:
+                 stats: ListenerStats | None = None, turn_requests: int = TURN_REQUESTS,
+                 conn_turn_requests: int = CONN_TURN_REQUESTS) -> None:
         if max_connections < 1:
             raise ValueError(f"`max_connections` must be >= 1, was {max_connections}")
         if idle_timeout_s <= 0:
@@ -163,8 +244,13 @@ class Listener:
         self.max_connections = max_connections
         self.idle_timeout_s = idle_timeout_s
         self.clock = clock
+        self.turn_requests, self.conn_turn_requests = turn_requests, conn_turn_requests
         self.conns: set[Conn] = set()
         self.stats = stats if stats is not None else ListenerStats()
+        self.chunk = memoryview(bytearray(64 * 1024))  # every connection reads into it
+        self._ready: collections.deque[Conn] = collections.deque()  # connections to serve
+        self._queued: set[Conn] = set()
+        self._turn: asyncio.Handle | None = None
         self._server: asyncio.Server | None = None
         self._sweeper: asyncio.Task[None] | None = None
 
@@ -210,28 +296,81 @@ class Listener:
                 await sweeper
         if server is not None:
             server.close()
+        if self._turn is not None:
+            self._turn.cancel()
+            self._turn = None
+        self._ready.clear()
+        self._queued.clear()
         for conn in list(self.conns):
             self._remove(conn)
+            conn.closed = True
             if conn.transport is not None:
                 conn.transport.abort()
         if server is not None:
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(server.wait_closed(), 1.0)
 
+    # ------------------------------------------------------------------ turns
+
+    def wake(self, conn: Conn) -> None:
+        """Serve ``conn`` at the next turn if it holds a request it may be answered."""
+        if conn in self._queued or conn.closed or conn.blocked or not conn.ready():
+            return
+        self._queued.add(conn)
+        self._ready.append(conn)
+        if self._turn is None:
+            self._turn = asyncio.get_running_loop().call_soon(self._serve_turn)
+
+    def _serve_turn(self) -> None:
+        """One turn: at most ``turn_requests`` requests, ``conn_turn_requests`` per
+        connection, round robin; what is left waits for the next turn of the event loop
+        (the callbacks that became ready meanwhile, a poll's answer among them, run
+        first)."""
+        self._turn = None
+        budget = self.turn_requests
+        while budget > 0 and self._ready:
+            conn = self._ready.popleft()
+            self._queued.discard(conn)
+            if conn.closed or conn.blocked or not conn.ready():
+                continue
+            budget -= max(1, conn.turn(min(self.conn_turn_requests, budget)))
+            if not conn.closed and not conn.blocked and conn.ready():
+                self._queued.add(conn)
+                self._ready.append(conn)
+        if self._ready:
+            self._turn = asyncio.get_running_loop().call_soon(self._serve_turn)
+
+    def failed(self, stage: str, exc: BaseException) -> None:
+        """An exception on a serving path: counted and logged (rate-limited by cause)."""
+        self.stats.errors[stage] = self.stats.errors.get(stage, 0) + 1
+        report(self.name, stage, exc)
+
     # ------------------------------------------------------------------ connections
 
     def admit(self, conn: Conn) -> None:
         self.stats.accepted += 1
         if len(self.conns) >= self.max_connections:
-            victim = min((c for c in self.conns if not c.busy),
-                         key=lambda c: (c.useful, c.last), default=None)
-            if victim is None:  # every slot is answering a request: refuse the newcomer
+            victim, reason = self.victim(self.clock())
+            if victim is None:
                 conn.drop("limit")
                 return
             self._remove(victim)
-            victim.drop("limit")
+            victim.drop(reason)
         self.conns.add(conn)
         self.stats.open += 1
+
+    def victim(self, now: float) -> tuple[Conn | None, str]:
+        """The connection a newcomer over the limit closes, and why (see the module)."""
+        never = [c for c in self.conns if not c.useful and not c.busy]
+        if never:
+            return min(never, key=lambda c: c.last), "limit"
+        unread = [c for c in self.conns if c.queued() >= WRITE_HIGH_WATER]
+        if unread:
+            return max(unread, key=lambda c: (c.queued(), now - (c.pending_since or now))), \
+                "unread"
+        if not self.conns:
+            return None, "limit"
+        return max(self.conns, key=lambda c: (c.rate(now), now - c.last)), "busiest"
 
     def forget(self, conn: Conn) -> None:
         self._remove(conn)

@@ -4,8 +4,9 @@
 from one uint16 image per table and unit id; updating an image is a numpy assignment. The
 gateway's result server (:mod:`gateway.outputs.modbus_server`) and the simulated PLC
 (:mod:`plcsim`) both serve through it. It is an asyncio protocol on a
-:class:`~gateway.wire.listener.Listener` (connection limit, idle timeout, garbage closes the
-connection), and answers as the Modbus application protocol (V1.1b3) says:
+:class:`~gateway.wire.listener.Listener` (connection limit, idle timeout, a few requests per
+turn of the event loop, answers not read stop the reading, garbage closes the connection),
+and answers as the Modbus application protocol (V1.1b3) says:
 
 * an exception response carries the request's function code | 0x80;
 * exception 1 (illegal function): every function but 3, 4 and 43/14 - writes (5, 6, 15,
@@ -13,7 +14,8 @@ connection), and answers as the Modbus application protocol (V1.1b3) says:
   (17) - and 43/14 (read device identification) when no identification is configured;
 * exception 3 (illegal data value): a count outside 1..125 or a request of the wrong length;
 * exception 2 (illegal data address): registers beyond the image;
-* exception 0x0A (gateway path unavailable): a unit id not served.
+* exception 0x0A (gateway path unavailable): a unit id not served;
+* exception 4 (server device failure): an unexpected error while answering (logged).
 
 The MBAP header is checked: a protocol id other than 0 or a length outside 2..254 closes the
 connection. Identification (43/14) answers exactly the objects given, nothing else.
@@ -27,9 +29,10 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from .listener import REQUESTS_PER_TURN, Conn, Listener, ListenerStats
+from .listener import Conn, Listener, ListenerStats
 
-__all__ = ["DEFAULT_IDLE_TIMEOUT_S", "DEFAULT_MAX_CONNECTIONS", "EXC_GATEWAY_PATH",
+__all__ = ["DEFAULT_IDLE_TIMEOUT_S", "DEFAULT_MAX_CONNECTIONS", "EXC_DEVICE_FAILURE",
+           "EXC_GATEWAY_PATH",
            "EXC_ILLEGAL_ADDRESS", "EXC_ILLEGAL_FUNCTION", "EXC_ILLEGAL_VALUE",
            "IDENTIFICATION_OBJECTS", "RegisterServer", "answer_identification"]
 
@@ -38,6 +41,7 @@ WRITE_CODES = frozenset({5, 6, 15, 16, 22, 23})
 MAX_READ = 125
 EXC_ILLEGAL_FUNCTION, EXC_ILLEGAL_ADDRESS, EXC_ILLEGAL_VALUE = 1, 2, 3
 EXC_GATEWAY_PATH = 0x0A
+EXC_DEVICE_FAILURE = 4
 DEFAULT_MAX_CONNECTIONS = 64
 DEFAULT_IDLE_TIMEOUT_S = 60.0
 IDENTIFICATION_OBJECTS = ("vendor_name", "product_code", "revision", "vendor_url",
@@ -73,30 +77,37 @@ def answer_identification(pdu: bytes, objects: Mapping[int, bytes]) -> bytes:
 
 
 class _ModbusConn(Conn):
-    """One client connection: MBAP frames in, answers out, in order."""
+    """One client connection: MBAP frames in, answers out, in order, a few per turn."""
 
-    def handle(self) -> None:
+    in_limit = 4096  # 15 frames of the longest kind; a pipelining client waits for the rest
+
+    def ready(self) -> bool:
+        buf = self.buffer
+        if len(buf) < 7:
+            return False
+        protocol, length = struct.unpack_from(">HH", buf, 2)
+        return protocol != 0 or not 2 <= length <= 254 or len(buf) >= 6 + length
+
+    def serve(self, n: int) -> int:
         server: RegisterServer = self.listener.owner
         buf = self.buffer
-        answered = 0
-        while len(buf) >= 7 and not self.closed:
-            if answered == REQUESTS_PER_TURN:
-                self.later()
-                return
-            answered += 1
+        out: list[bytes] = []
+        while len(out) < n and len(buf) >= 7:
             tid, protocol, length, unit = _MBAP.unpack_from(buf)
             if protocol != 0 or not 2 <= length <= 254:
                 self.drop("protocol")
-                return
+                return len(out) + 1
             end = 6 + length
             if len(buf) < end:
                 break
-            self.begin()
             pdu = bytes(buf[7:end])
             del buf[:end]
-            reply = server.answer(unit, pdu)
-            self.write(_MBAP.pack(tid, 0, len(reply) + 1, unit) + reply)
-            self.served()
+            reply = server.respond(unit, pdu)
+            out.append(_MBAP.pack(tid, 0, len(reply) + 1, unit) + reply)
+        if out:
+            self.write(b"".join(out))  # one write (one system call) per turn
+            self.served(len(out))
+        return len(out)
 
 
 class RegisterServer:
@@ -146,6 +157,15 @@ class RegisterServer:
     def set_identification(self, identification: Mapping[str, str]) -> None:
         """What 43/14 answers from now on (object name -> text); empty: refused."""
         self.identification = _objects(identification)
+
+    def respond(self, unit: int, pdu: bytes) -> bytes:
+        """:meth:`answer`; an unexpected exception answers exception 4 (server device
+        failure), counted and logged by cause, and the connection goes on."""
+        try:
+            return self.answer(unit, pdu)
+        except Exception as exc:
+            self.listener.failed("request", exc)
+            return _exception(pdu[0] if pdu else 0, EXC_DEVICE_FAILURE)
 
     def answer(self, unit: int, pdu: bytes) -> bytes:
         """The response PDU to request ``pdu`` for ``unit``."""

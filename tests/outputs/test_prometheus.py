@@ -17,6 +17,7 @@ from gateway.config import parse_config
 from gateway.core.store import ResultStore
 from gateway.outputs.base import Binding
 from gateway.outputs.prometheus import GatewayMetrics, PrometheusSink, StoreCollector
+from gateway.wire.listener import ListenerStats
 
 
 def _registry() -> CollectorRegistry:
@@ -29,6 +30,11 @@ def _registry() -> CollectorRegistry:
     metrics.poll_requests.labels(device="plc1").inc(4)
     metrics.poll_errors.labels(device="plc1", kind="timeout").inc()
     metrics.analysis_duration.observe(0.003)
+    metrics.missed_ticks.labels(device="plc1").inc(2)
+    metrics.poll_lateness.labels(device="plc1").observe(0.02)
+    metrics.state_write_failures.inc()
+    metrics.state_last_write.set(1_700_000_000)
+    metrics.track_server("modbus", ListenerStats())
     return registry
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 
+import numpy as np
 from prometheus_client.core import GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 
@@ -69,6 +70,10 @@ class StoreCollector(Collector):
         yield from (si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv)
 
 
-def _add(family: GaugeMetricFamily, loop: str, value: float | None) -> None:
-    if value is not None and math.isfinite(value):
+def _add(family: GaugeMetricFamily, loop: str, value: object) -> None:
+    """Add a finite number; anything else (None, NaN, a value of another type that a
+    damaged state file might hold) is left out, never an error of the whole scrape."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
+        return
+    if math.isfinite(value):
         family.add_metric([loop], float(value))

@@ -1,5 +1,6 @@
-"""The gateway's own metrics: device up, poll duration/requests/errors, analysis duration,
-config reload failures, the servers' connections, build info. Ordinary client objects in the
+"""The gateway's own metrics: device up, poll duration/requests/errors, missed ticks, poll
+lateness and whether a device keeps its schedule, analysis duration, config reload failures,
+state-file writes, the servers' connections and errors, build info. Ordinary client objects in the
 explicitly passed registry (a fresh one per gateway, so each test gets its own)."""
 
 from __future__ import annotations
@@ -13,14 +14,17 @@ from prometheus_client.registry import Collector
 
 from ..._version import __version__
 from ...errors import DeviceError
-from ...wire.listener import CLOSE_REASONS, ListenerStats
+from ...wire.listener import CLOSE_REASONS, ERROR_STAGES, ListenerStats
 from .collector import PREFIX
 
-__all__ = ["RELOAD_STAGES", "GatewayMetrics", "ServerCollector"]
+__all__ = ["RELOAD_STAGES", "STATE_SET_ASIDE", "GatewayMetrics", "ServerCollector"]
 
 RELOAD_STAGES = ("read", "validate", "listen", "build")
 """Where a refused reload failed: reading/decoding the file, validating it, binding a new
 listener, building the runtime."""
+STATE_SET_ASIDE = ("corrupt", "foreign")
+"""Why a state file was set aside at start: unreadable or a field out of bounds, not ours."""
+LATENESS_BUCKETS = (0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0)
 
 
 class GatewayMetrics:
@@ -38,6 +42,16 @@ class GatewayMetrics:
                                      ["device"], registry=registry)
         self.poll_errors = Counter(f"{PREFIX}_poll_errors", "Failed polls by kind.",
                                    ["device", "kind"], registry=registry)
+        self.missed_ticks = Counter(
+            f"{PREFIX}_poll_missed_ticks", "Ticks of the poll schedule that passed while a "
+            "poll overran (each a gap row in the windows).", ["device"], registry=registry)
+        self.poll_lateness = Histogram(
+            f"{PREFIX}_poll_lateness_seconds", "How late a poll started after its tick was "
+            "due.", ["device"], buckets=LATENESS_BUCKETS, registry=registry)
+        self.behind = Gauge(
+            f"{PREFIX}_device_behind_schedule", "1 while polls of the device cannot keep "
+            "its poll_interval_s (a tick missed or a poll started over half an interval "
+            "late within the last minute).", ["device"], registry=registry)
         self.analysis_duration = Histogram(
             f"{PREFIX}_analysis_duration_seconds", "Worker time to analyse one loop window.",
             buckets=(0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5),
@@ -47,6 +61,17 @@ class GatewayMetrics:
             "kept), by stage.", ["stage"], registry=registry)
         for stage in RELOAD_STAGES:
             self.reload_failures.labels(stage=stage)
+        self.state_write_failures = Counter(
+            f"{PREFIX}_state_write_failures", "State-file writes that failed (e.g. a full "
+            "disk).", registry=registry)
+        self.state_last_write = Gauge(
+            f"{PREFIX}_state_last_write_timestamp_seconds", "Unix time of the last "
+            "state-file write that succeeded.", registry=registry)
+        self.state_set_aside = Counter(
+            f"{PREFIX}_state_file_set_aside", "State files set aside at start (the gateway "
+            "started empty), by reason.", ["reason"], registry=registry)
+        for reason in STATE_SET_ASIDE:
+            self.state_set_aside.labels(reason=reason)
         self.servers = ServerCollector()
         registry.register(self.servers)
         self.build = Info(f"{PREFIX}_build", "Version of the gateway, and its site and area "
@@ -66,14 +91,17 @@ class GatewayMetrics:
     def add_device(self, name: str) -> None:
         """Create a device's series at zero so they exist before the first error."""
         self.device_up.labels(device=name).set(0)
-        self.poll_requests.labels(device=name)
-        self.poll_duration.labels(device=name)
+        self.behind.labels(device=name).set(0)
+        for metric in (self.poll_requests, self.poll_duration, self.missed_ticks,
+                       self.poll_lateness):
+            metric.labels(device=name)
         for kind in DeviceError.KINDS:
             self.poll_errors.labels(device=name, kind=kind)
 
     def remove_device(self, name: str) -> None:
         """Drop a device's series (it left the config on reload)."""
-        for metric in (self.device_up, self.poll_requests, self.poll_duration):
+        for metric in (self.device_up, self.poll_requests, self.poll_duration, self.behind,
+                       self.missed_ticks, self.poll_lateness):
             with contextlib.suppress(KeyError):
                 metric.remove(name)
         for kind in DeviceError.KINDS:
@@ -96,11 +124,18 @@ class ServerCollector(Collector):
                                        "Client connections accepted.", labels=["server"])
         closed = CounterMetricFamily(
             f"{PREFIX}_server_connections_closed", "Client connections the server closed: "
-            "over max_connections (limit), idle for idle_timeout_s (idle), garbage "
-            "(protocol).", labels=["server", "reason"])
+            "for a newcomer over max_connections (limit: one that never completed a "
+            "request; unread: one not reading its answers; busiest: the highest request "
+            "rate), idle for idle_timeout_s (idle), garbage (protocol), an error while "
+            "answering (error).", labels=["server", "reason"])
+        errors = CounterMetricFamily(
+            f"{PREFIX}_server_errors", "Unexpected errors of a server (logged), by stage: "
+            "answering a request, rendering the metrics page.", labels=["server", "stage"])
         for name, st in sorted(self.stats.items()):
             open_.add_metric([name], st.open)
             accepted.add_metric([name], st.accepted)
             for reason in CLOSE_REASONS:
                 closed.add_metric([name, reason], st.closed[reason])
-        yield from (open_, accepted, closed)
+            for stage in ERROR_STAGES:
+                errors.add_metric([name, stage], st.errors.get(stage, 0))
+        yield from (open_, accepted, closed, errors)

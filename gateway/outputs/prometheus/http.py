@@ -1,21 +1,36 @@
 """The /metrics HTTP server: asyncio connections on a bounded
 :class:`~gateway.wire.listener.Listener` (``metrics.max_connections``,
-``metrics.idle_timeout_s``), not a thread per connection.
+``metrics.idle_timeout_s``, a few requests per turn of the event loop), not a thread per
+connection.
 
 ``GET`` (or ``HEAD``) of ``/metrics`` or ``/`` answers the registry's exposition: the
 ``Accept`` header picks OpenMetrics or the text format, ``name[]`` query parameters restrict
 the series (as prometheus_client's own server does), gzip when accepted. Rendering runs in
 one worker thread (the collectors read a snapshot of the store); scrapes that arrive while a
-rendering is under way share it, so a crowd of scrapers costs one rendering at a time.
-Other paths get 404, other methods 405, a request with a body or a malformed request 400,
-headers over 8 KiB 431; the last three close the connection.
+rendering is under way share it, and a page serves later scrapes of the same kind for
+:data:`RENDER_REST` times as long as it took to render, so however many scrapers there are,
+rendering takes at most a quarter of the time (it holds the interpreter that the pollers
+share). Requests of one connection are answered in order, one at a time (pipelined ones
+wait in its bounded buffer); while a client does not read its answers, none of its requests
+is answered.
+
+Other paths get 404, other methods 405, an ``Accept`` header the exposition cannot use 406,
+a request with a body or a malformed request 400, headers over 8 KiB 431 (the last three
+close the connection); a request line may end in CRLF or a bare LF. A rendering that fails
+answers 500, is logged (rate-limited by cause) and counted
+(``stiction_server_errors_total{server="metrics",stage="render"}``).
 """
 
 from __future__ import annotations
 
 import asyncio
 import gzip
+import logging
+import re
+import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 from urllib.parse import parse_qs
 
 from prometheus_client import CollectorRegistry
@@ -23,35 +38,59 @@ from prometheus_client.exposition import choose_encoder
 
 from ...wire.listener import Conn, Listener, ListenerStats
 
-__all__ = ["MAX_HEAD_BYTES", "MetricsServer"]
+__all__ = ["MAX_HEAD_BYTES", "RENDER_REST", "MetricsServer"]
+
+log = logging.getLogger("gateway.server")
 
 MAX_HEAD_BYTES = 8192
+RENDER_REST = 3.0
+"""A page serves scrapes of the same kind for this many times its rendering time."""
 _REASONS = {200: "OK", 400: "Bad Request", 404: "Not Found", 405: "Method Not Allowed",
-            431: "Request Header Fields Too Large", 500: "Internal Server Error"}
+            406: "Not Acceptable", 431: "Request Header Fields Too Large",
+            500: "Internal Server Error"}
+_HEAD_END = re.compile(rb"\r?\n\r?\n")
 Page = tuple[int, str, bytes, bool]  # status, content type, body, gzipped
+Key = tuple[str, bool, tuple[str, ...]]
+
+
+class NotAcceptable(ValueError):
+    """An ``Accept`` header the exposition cannot use."""
+
+
+def negotiate(accept: str) -> tuple[Callable[[Any], bytes], str]:
+    """prometheus_client's choice of encoder and content type for ``accept``; NotAcceptable
+    if it cannot parse it (it raised TypeError on ``version=abc``)."""
+    try:
+        return choose_encoder(accept)
+    except Exception as exc:
+        raise NotAcceptable(f"{type(exc).__name__}") from exc
 
 
 class _HttpConn(Conn):
     """One client connection: requests in, one at a time, answers out."""
 
-    def handle(self) -> None:
-        if not self.busy:
-            self._next()
-        elif len(self.buffer) > 2 * MAX_HEAD_BYTES:  # pipelining far ahead of the answers
-            self.drop("protocol")
+    in_limit = 2 * MAX_HEAD_BYTES
 
-    def _next(self) -> None:
-        buf = self.buffer
-        end = buf.find(b"\r\n\r\n")
-        if end < 0:
-            if len(buf) > MAX_HEAD_BYTES:
-                self._reply(431, b"request headers too large\n", keep=False)
-            return
-        if end > MAX_HEAD_BYTES:
-            self._reply(431, b"request headers too large\n", keep=False)
-            return
-        lines = bytes(buf[:end]).decode("latin-1").split("\r\n")
-        del buf[:end + 4]
+    def ready(self) -> bool:
+        return len(self.buffer) > MAX_HEAD_BYTES or _HEAD_END.search(self.buffer) is not None
+
+    def serve(self, n: int) -> int:
+        done = 0
+        while done < n and not self.closed and not self.blocked:
+            end = _HEAD_END.search(self.buffer)
+            if end is None or end.start() > MAX_HEAD_BYTES:
+                if end is not None or len(self.buffer) > MAX_HEAD_BYTES:
+                    self._reply(431, b"request headers too large\n", keep=False)
+                    done += 1
+                break
+            head = bytes(self.buffer[:end.start()])
+            del self.buffer[:end.end()]
+            done += 1
+            self._request(head.decode("latin-1"))
+        return done
+
+    def _request(self, head: str) -> None:
+        lines = [line.rstrip("\r") for line in head.split("\n")]
         request = lines[0].split(" ")
         if len(request) != 3 or not request[2].startswith("HTTP/1."):
             self._reply(400, b"malformed request\n", keep=False)
@@ -69,27 +108,38 @@ class _HttpConn(Conn):
         if method not in ("GET", "HEAD"):
             self._reply(405, b"only GET and HEAD\n", keep=False)
             return
+        head_only = method == "HEAD"
         path, _, query = target.partition("?")
         if path not in ("/", "/metrics"):
-            self._reply(404, b"not found: try /metrics\n", keep=keep, head=method == "HEAD")
+            self._reply(404, b"not found: try /metrics\n", keep=keep, head=head_only)
             return
-        self.begin()
         names = tuple(sorted(parse_qs(query).get("name[]", [])))
         gz = "gzip" in headers.get("accept-encoding", "").lower()
         server: MetricsServer = self.listener.owner
-        task = asyncio.ensure_future(server.page(headers.get("accept", ""), gz, names))
-        task.add_done_callback(lambda t: self._rendered(t, keep, method == "HEAD"))
+        try:
+            future = server.page(headers.get("accept", ""), gz, names)
+        except NotAcceptable as exc:
+            log.warning("%s: cannot use the client's Accept header", f"metrics server, "
+                        f"Accept: {exc}")
+            self._reply(406, b"unusable Accept header: try text/plain or "
+                        b"application/openmetrics-text; version=1.0.0\n", keep=keep,
+                        head=head_only)
+            return
+        self.busy = True
+        future.add_done_callback(lambda f: self._rendered(f, keep, head_only))
 
-    def _rendered(self, task: asyncio.Future[Page], keep: bool, head: bool) -> None:
+    def _rendered(self, future: asyncio.Future[Page], keep: bool, head: bool) -> None:
+        self.busy = False
         if self.closed:
             return
-        if task.cancelled() or task.exception() is not None:
+        if future.cancelled() or future.exception() is not None:
             self._reply(500, b"the metrics could not be rendered\n", keep=False)
             return
-        status, ctype, body, gz = task.result()
+        status, ctype, body, gz = future.result()
         self._reply(status, body, keep=keep, head=head, ctype=ctype, gz=gz)
-        if keep and not self.closed:
-            self._next()
+        if not self.buffer:
+            self.pending_since = None
+        self.listener.wake(self)  # a pipelined request, in a later turn
 
     def _reply(self, status: int, body: bytes, *, keep: bool, head: bool = False,
                ctype: str = "text/plain; charset=utf-8", gz: bool = False) -> None:
@@ -100,7 +150,7 @@ class _HttpConn(Conn):
             lines.append("Content-Encoding: gzip")
         self.write(("\r\n".join(lines) + "\r\n\r\n").encode("latin-1") + (b"" if head else body))
         self.served()
-        if not keep and self.transport is not None:
+        if not keep and self.transport is not None and not self.closed:
             if status >= 400:
                 self.listener.stats.closed["protocol"] += 1
             self.closed = True
@@ -118,8 +168,10 @@ class MetricsServer:
                                  max_connections=max_connections,
                                  idle_timeout_s=idle_timeout_s, stats=stats)
         self._executor: ThreadPoolExecutor | None = None
-        self._inflight: dict[tuple[str, bool, tuple[str, ...]], asyncio.Future[Page]] = {}
+        self._inflight: dict[Key, asyncio.Future[Page]] = {}
+        self._pages: dict[Key, tuple[Page, float]] = {}  # page, loop time it serves until
         self.renders = 0
+        self.render_s = 0.0  # time the last rendering took
 
     @property
     def port(self) -> int:
@@ -140,22 +192,50 @@ class MetricsServer:
             executor.shutdown(wait=False, cancel_futures=True)
 
     def page(self, accept: str, gz: bool, names: tuple[str, ...]) -> asyncio.Future[Page]:
-        """The rendered exposition; requests for the same rendering share one."""
-        encoder, ctype = choose_encoder(accept)
+        """The rendered exposition: a fresh enough page of the same kind, the rendering under
+        way, or a new one. NotAcceptable for an ``Accept`` header it cannot use."""
+        encoder, ctype = negotiate(accept)
         key = (ctype, gz, names)
+        loop = asyncio.get_running_loop()
+        now = loop.time()
+        cached = self._pages.get(key)
+        if cached is not None and now < cached[1]:
+            done: asyncio.Future[Page] = loop.create_future()
+            done.set_result(cached[0])
+            return done
         running = self._inflight.get(key)
         if running is not None:
             return running
-        loop = asyncio.get_running_loop()
         assert self._executor is not None
 
-        def render() -> Page:
+        def render() -> tuple[Page, float]:
+            t0 = time.perf_counter()
             registry = self.registry.restricted_registry(names) if names else self.registry
             body = encoder(registry)
-            return 200, ctype, gzip.compress(body, 5) if gz else body, gz
+            page = (200, ctype, gzip.compress(body, 5) if gz else body, gz)
+            return page, time.perf_counter() - t0
 
-        future = asyncio.ensure_future(loop.run_in_executor(self._executor, render))
+        rendering = loop.run_in_executor(self._executor, render)
+        future: asyncio.Future[Page] = loop.create_future()
         self.renders += 1
         self._inflight[key] = future
-        future.add_done_callback(lambda _f: self._inflight.pop(key, None))
+
+        def finished(f: asyncio.Future[tuple[Page, float]]) -> None:
+            self._inflight.pop(key, None)
+            if f.cancelled():
+                future.cancel()
+                return
+            exc = f.exception()
+            if exc is not None:  # every scrape waiting on it answers 500; logged once
+                self.listener.failed("render", exc)
+                future.set_exception(exc)
+                return
+            page, took = f.result()
+            self.render_s = took
+            end = loop.time()
+            self._pages = {k: v for k, v in self._pages.items() if v[1] > end}
+            self._pages[key] = (page, end + RENDER_REST * took)
+            future.set_result(page)
+
+        rendering.add_done_callback(finished)
         return future
