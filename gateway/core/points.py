@@ -8,6 +8,9 @@ ones BAD, for every protocol:
 * NaN or ±inf (raw or after scaling);
 * a subnormal number (magnitude below the smallest normal float32, 1.2e-38, but not 0): a
   float32 read with the wrong word order, nearly always (50.0 word-swapped is 2.4e-41);
+* a magnitude above :data:`MAX_MAGNITUDE` (1e15, raw or after scaling), with or without a
+  ``range``: random register garbage read as float32 is mostly huge (-2.9e38), no process
+  value is;
 * an engineering value outside the point's configured ``range``.
 
 A sample that is not GOOD is NaN in the result: never a zero.
@@ -23,9 +26,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["FLOAT32_TINY", "PointSpec", "PointTable", "Quality"]
+__all__ = ["FLOAT32_TINY", "MAX_MAGNITUDE", "PointSpec", "PointTable", "Quality"]
 
 FLOAT32_TINY = float(np.finfo(np.float32).tiny)  # smallest normal float32
+MAX_MAGNITUDE = 1e15
+"""No plausible sample is larger in magnitude (raw or engineering), ``range`` or not."""
 
 
 class Quality(enum.IntEnum):
@@ -83,6 +88,7 @@ class PointTable:
             values = raw * self.scale + self.offset
             implausible = (~np.isfinite(raw) | ~np.isfinite(values)
                            | _subnormal(raw) | _subnormal(values)
+                           | (np.abs(raw) > MAX_MAGNITUDE) | (np.abs(values) > MAX_MAGNITUDE)
                            | (values < self.lo) | (values > self.hi))
         quality[implausible & (quality == Quality.GOOD)] = Quality.BAD
         values[quality != Quality.GOOD] = np.nan

@@ -9,6 +9,9 @@
   device goes down and when it recovers, so each outage is logged once.
 * :class:`StaleTracker`: which loops have had no fresh sample for :data:`STALE_POLLS` polls.
 * :class:`SetTracker`: which members of a set (failing blocks, bad points) came and went.
+* :class:`Lag`: whether a device keeps its poll interval (no tick missed, no poll started
+  over half an interval late, for a while); :func:`missed_times`: when the missed ticks
+  were due (each gap row keeps its own time).
 * :func:`stalled`: whether a poller made no progress for longer than a tick may take.
 
 The runtime's poller reads the clocks once per tick and passes them in; tests pass numbers.
@@ -24,14 +27,17 @@ from collections.abc import Hashable, Iterable, Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["AUTH_RETRY_CAP_S", "STALE_POLLS", "Backoff", "Link", "ProcessClock", "SetTracker",
-           "StaleTracker", "TickGrid", "stalled"]
+__all__ = ["AUTH_RETRY_CAP_S", "LAG_HOLD_S", "STALE_POLLS", "Backoff", "Lag", "Link",
+           "ProcessClock", "SetTracker", "StaleTracker", "TickGrid", "missed_times", "stalled"]
 
 STALE_POLLS = 3
 """Polls without a fresh sample after which a loop is stale (verdict code 6)."""
 AUTH_RETRY_CAP_S = 60.0
 """Least cap of the backoff after a refused login or certificate (kind ``auth``): from the
 first refusal on, the next attempt waits between half of it and all of it (30-60 s)."""
+LAG_HOLD_S = 60.0
+"""A device is behind schedule until this long (or 10 intervals, if longer) has passed
+without a missed tick or a late poll (so that a scrape every 15 s sees it)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,6 +73,46 @@ class TickGrid:
             return 0, due
         missed = int(behind // self.period)
         return missed, due + missed * self.period
+
+
+def missed_times(due: float, missed: int, period: float, rows: int) -> list[float]:
+    """When the last ``rows`` of the ``missed`` ticks from ``due`` on were due (the earlier
+    ones would not fit the window anyway), oldest first."""
+    first = max(0, missed - rows)
+    return [due + k * period for k in range(first, missed)]
+
+
+@dataclasses.dataclass
+class Lag:
+    """Whether a device keeps its poll interval ``period``: it falls behind at a missed
+    tick or at a poll that started more than half an interval late, and catches up once
+    ``hold_s`` (default: :data:`LAG_HOLD_S` or 10 intervals) passed without either."""
+
+    period: float
+    hold_s: float = 0.0
+    behind: bool = False
+    since: float = 0.0  # when the latest missed tick or late poll was seen
+    missed: int = 0  # ticks missed since it fell behind
+
+    def __post_init__(self) -> None:
+        if self.hold_s <= 0:
+            self.hold_s = max(LAG_HOLD_S, 10 * self.period)
+
+    def update(self, now: float, missed: int, late: float) -> bool | None:
+        """A tick starts at ``now``, ``late`` seconds after it was due, after ``missed``
+        ticks were missed. True when the device just fell behind, False when it just
+        caught up, else None."""
+        if missed or late > self.period / 2:
+            self.since = now
+            self.missed += missed
+            if not self.behind:
+                self.behind = True
+                return True
+            return None
+        if self.behind and now - self.since >= self.hold_s:
+            self.behind, self.missed = False, 0
+            return False
+        return None
 
 
 class Backoff:

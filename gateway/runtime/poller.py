@@ -1,7 +1,11 @@
 """One polling task per device: the asyncio shell around the rules of :mod:`gateway.core`.
 
 :meth:`DevicePoller.run` keeps the absolute tick schedule (:class:`~gateway.core.ticks.TickGrid`;
-ticks missed because a poll overran become gap rows, counted in ``missed_ticks``) and calls
+ticks missed because a poll overran become gap rows at their own due times, counted in
+``missed_ticks`` and ``stiction_poll_missed_ticks_total``; how late each poll starts goes to
+``stiction_poll_lateness_seconds``; a device that cannot keep its interval is flagged,
+:class:`~gateway.core.ticks.Lag`, ``stiction_device_behind_schedule``, one log line each way,
+and its loops go stale as for any tick without a sample) and calls
 :meth:`DevicePoller.tick`, which reads the clocks once and does one poll: (re)connect when
 the :class:`~gateway.core.ticks.Link` allows it, read under a hard time limit, turn raw
 values into engineering values (:class:`~gateway.core.points.PointTable`), append one sample
@@ -32,7 +36,17 @@ import numpy as np
 from ..config.model import DeviceConfig
 from ..core.points import PointSpec, PointTable, Quality
 from ..core.store import ResultStore
-from ..core.ticks import Backoff, Link, ProcessClock, SetTracker, StaleTracker, TickGrid, stalled
+from ..core.ticks import (
+    Backoff,
+    Lag,
+    Link,
+    ProcessClock,
+    SetTracker,
+    StaleTracker,
+    TickGrid,
+    missed_times,
+    stalled,
+)
 from ..core.windows import LoopGroup, record
 from ..errors import DeviceError
 from ..inputs.base import ReadResult, Source
@@ -75,12 +89,13 @@ class DevicePoller:
                       else np.zeros(0, dtype=np.intp))
         self.link = Link(backoff or Backoff(BACKOFF_BASE_S, 2.0, 30.0))
         self.stale = StaleTracker(len(self.loops))
-        self.blocks = SetTracker()  # failing blocks ("holding 100+4")
-        self.bad = SetTracker()  # points with implausible values
+        self.report = DeviceReport(device.name, metrics, self.period,
+                                   device.poll_interval_s)
         # a hard limit on one connect or read, whatever the source does with its timeout
         self.guard_s = 10.0 * device.timeout_s + 1.0
         self.connected = False
         self.polls = self.good_polls = self.missed_ticks = 0
+        self.ticks = 0  # polls and missed ticks: the stale flags count both
         self.reconnects = 0  # successful connects after the first
         self._connects = 0
         self.tick_starts: list[float] = []  # clocks.mono() of recent tick starts (jitter)
@@ -99,7 +114,8 @@ class DevicePoller:
 
     def take_over(self, old: DevicePoller) -> None:
         """Continue ``old``'s connection state (same device, same source) after a reload."""
-        self.connected, self.link, self.blocks = old.connected, old.link, old.blocks
+        self.connected, self.link = old.connected, old.link
+        self.report.blocks = old.report.blocks
         self._connects = old._connects
 
     def request_stop(self) -> None:
@@ -138,10 +154,9 @@ class DevicePoller:
                     await asyncio.wait_for(self._stop.wait(), delay)
                 if self._stop.is_set():
                     break
-            missed, due = self.grid.catch_up(due, mono())
-            self.missed_ticks += missed
-            for _ in range(min(missed, self._max_rows())):  # gap rows keep time order
-                self._gap(self.clock.now(self.clocks.wall()))  # type: ignore[union-attr]
+            now = mono()
+            missed, due = self.grid.catch_up(due, now)
+            self._schedule(due, missed, now)
             try:
                 await self.tick()
             except Exception:  # a bug in one tick must not end polling for months
@@ -152,8 +167,18 @@ class DevicePoller:
             due += self.period
         self.next_due = due
 
-    def _max_rows(self) -> int:
-        return max((g.bank.size for g in self.groups), default=0)
+    def _schedule(self, due: float, missed: int, now: float) -> None:
+        """Record the ``missed`` ticks before ``due`` as gap rows at their own times, and
+        report how late this tick starts."""
+        assert self.clocks is not None
+        wall = self.clocks.wall()
+        rows = max((g.bank.size for g in self.groups), default=0)
+        self.missed_ticks += missed
+        self.ticks += max(0, missed - rows)
+        for t_due in missed_times(due - missed * self.period, missed, self.period, rows):
+            self.ticks += 1
+            self._gap(self.clock.now(wall - (now - t_due)))
+        self.report.schedule(missed, now - due, now, up=self.link.up is True)
 
     async def _disconnect(self) -> None:
         self.connected = False
@@ -172,6 +197,7 @@ class DevicePoller:
             del self.tick_starts[:2048]
         t_proc = self.clock.now(clocks.wall())
         self.polls += 1
+        self.ticks += 1
         if not self.connected:
             if not self.link.may_connect(mono()):
                 self._gap(t_proc)
@@ -206,49 +232,94 @@ class DevicePoller:
         name = self.device.name
         err = exc if isinstance(exc, DeviceError) else DeviceError(
             name, "timeout", f"{what} took over {self.guard_s:g} s")
-        if self.metrics is not None:
-            self.metrics.poll_errors.labels(device=name, kind=err.kind).inc()
-            self.metrics.device_up.labels(device=name).set(0)
+        self.report.failed(err)
         if self.link.failed(err.kind, self._mono()()):
             log.warning("device %s: down (%s): %s; retrying with backoff up to %g s",
                         name, err.kind, err, self.link.backoff.cap_for(err.kind))
 
     def _answered(self, result: ReadResult, seconds: float) -> None:
-        name = self.device.name
-        if self.metrics is not None:
-            self.metrics.poll_duration.labels(device=name).observe(seconds)
-            self.metrics.poll_requests.labels(device=name).inc(result.requests)
-            for block_err in result.errors:
-                self.metrics.poll_errors.labels(device=name, kind=block_err.kind).inc()
-        messages = {_block_key(e): str(e) for e in result.errors}
-        came, went = self.blocks.update(messages)
-        for key in came:
-            log.warning("%s; its points are gaps until it answers", messages[str(key)])
-        for key in went:
-            log.warning("device %s: %s answering again", name, key)
+        self.report.answered(result, seconds)
         before = self.link.answered()
         if before is False:
-            log.warning("device %s: recovered", name)
-        if before is not True and self.metrics is not None:
-            self.metrics.device_up.labels(device=name).set(1)
+            log.warning("device %s: recovered", self.device.name)
+        if before is not True:
+            self.report.up()
         self.good_polls += 1
 
     def _note_bad(self, quality: np.ndarray) -> None:
-        came, went = self.bad.update(np.flatnonzero(quality == Quality.BAD).tolist())
-        if not came and not went:
-            return
-        if self.bad.members:
-            log.warning("device %s: bad values (NaN, inf, subnormal or out of range) at %s",
-                        self.device.name, self.table.names(self.bad.members))  # type: ignore[arg-type]
-        else:
-            log.warning("device %s: values plausible again", self.device.name)
+        self.report.bad_points(np.flatnonzero(quality == Quality.BAD).tolist(), self.table)
 
     def _gap(self, t_proc: float) -> None:
         self._append(t_proc, *self.table.gap())
 
     def _append(self, t_proc: float, values: np.ndarray, quality: np.ndarray) -> None:
         fresh = record(self.groups, t_proc, values, quality, self.store)
-        self.store.set_stale(self.loops, self.stale.update(self.polls, fresh))
+        self.store.set_stale(self.loops, self.stale.update(self.ticks, fresh))
+
+
+class DeviceReport:
+    """What a device's polls tell the operator: its metrics (``metrics`` may be None) and
+    its log lines, one per change: a block failing or answering again, the set of
+    implausible points, the device falling behind its schedule or catching up."""
+
+    def __init__(self, name: str, metrics: GatewayMetrics | None, period: float,
+                 interval_s: float) -> None:
+        self.name, self.metrics, self.interval_s = name, metrics, interval_s
+        self.blocks = SetTracker()  # failing blocks ("holding 100+4")
+        self.bad = SetTracker()  # points with implausible values
+        self.lag = Lag(period)
+
+    def schedule(self, missed: int, late: float, now: float, *, up: bool) -> None:
+        """A tick starts ``late`` s after it was due, ``missed`` ticks after the last; a
+        device that is not ``up`` (reported down already) is not judged."""
+        m = self.metrics
+        if m is not None:
+            m.missed_ticks.labels(device=self.name).inc(missed)
+            m.poll_lateness.labels(device=self.name).observe(max(0.0, late))
+        change = self.lag.update(now, missed, late) if up else None
+        if change is None:
+            return
+        if m is not None:
+            m.behind.labels(device=self.name).set(1 if change else 0)
+        if change:
+            log.warning("device %s: polls cannot keep poll_interval_s (%g s): %d tick(s) "
+                        "missed, this poll started %.2f s late; missed ticks are gaps",
+                        self.name, self.interval_s, missed, max(0.0, late))
+        else:
+            log.warning("device %s: polls keep their schedule again", self.name)
+
+    def failed(self, err: DeviceError) -> None:
+        if self.metrics is not None:
+            self.metrics.poll_errors.labels(device=self.name, kind=err.kind).inc()
+            self.metrics.device_up.labels(device=self.name).set(0)
+
+    def up(self) -> None:
+        if self.metrics is not None:
+            self.metrics.device_up.labels(device=self.name).set(1)
+
+    def answered(self, result: ReadResult, seconds: float) -> None:
+        m = self.metrics
+        if m is not None:
+            m.poll_duration.labels(device=self.name).observe(seconds)
+            m.poll_requests.labels(device=self.name).inc(result.requests)
+            for block_err in result.errors:
+                m.poll_errors.labels(device=self.name, kind=block_err.kind).inc()
+        messages = {_block_key(e): str(e) for e in result.errors}
+        came, went = self.blocks.update(messages)
+        for key in came:
+            log.warning("%s; its points are gaps until it answers", messages[str(key)])
+        for key in went:
+            log.warning("device %s: %s answering again", self.name, key)
+
+    def bad_points(self, bad: list[int], table: PointTable) -> None:
+        came, went = self.bad.update(bad)
+        if not came and not went:
+            return
+        if self.bad.members:
+            log.warning("device %s: bad values (NaN, inf, subnormal or out of range) at %s",
+                        self.name, table.names(self.bad.members))  # type: ignore[arg-type]
+        else:
+            log.warning("device %s: values plausible again", self.name)
 
 
 def _block_key(err: DeviceError) -> str:

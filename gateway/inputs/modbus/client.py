@@ -6,6 +6,12 @@ order, byte order) once, at construction, and each group is decoded per read wit
 fancy-index gather and one ``ndarray.view`` (:mod:`gateway.wire.codec`): no per-point Python
 work. pymodbus errors are mapped to :class:`~gateway.errors.DeviceError` here; the client
 never retries by itself (``retries=0``): the poller owns reconnecting.
+
+Answers are checked strictly, and an answer that is not the one asked for is a protocol
+error (kind ``protocol``), never data: another function code than the request's (4 for
+3), fewer or more registers than asked, or a frame pymodbus cannot decode (a byte count
+beyond the frame); the last fails the request at once (pymodbus would raise it on the event
+loop, log a traceback and leave the request to time out) and the connection is closed.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ import dataclasses
 import logging
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,6 +73,7 @@ class ModbusInput:
         self.timeout_s = timeout_s
         self._client = AsyncModbusTcpClient(options.host, port=options.port, timeout=timeout_s,
                                             retries=0, reconnect_delay=0)
+        _strict_frames(self._client)
 
     @property
     def connected(self) -> bool:
@@ -101,7 +109,11 @@ class ModbusInput:
             except (ModbusException, ValueError, OSError) as exc:
                 raise DeviceError(self.name, "protocol", f"{what}: {exc}") from exc
             sl = slice(req.offset, req.offset + req.count)
-            if rsp.isError():
+            fc = 3 if req.table == "holding" else 4
+            if getattr(rsp, "function_code", fc) & 0x7F != fc:
+                errors.append(DeviceError(self.name, "protocol", f"{what}: answered with "
+                                          f"function code {rsp.function_code}, not {fc}"))
+            elif rsp.isError():
                 code = getattr(rsp, "exception_code", None)
                 errors.append(DeviceError(self.name, "exception",
                                           f"{what}: exception code {code}"))
@@ -141,3 +153,32 @@ class ModbusInput:
             self._client.close()
         except Exception:  # close never raises, whatever pymodbus does
             log.debug("closing %s", self.name, exc_info=True)
+
+
+class UndecodableAnswer(ModbusException):
+    """The PLC's answer is not a Modbus frame pymodbus can decode."""
+
+
+def _strict_frames(client: AsyncModbusTcpClient) -> None:
+    """Make a frame pymodbus cannot decode fail the waiting request with
+    :class:`UndecodableAnswer` (mapped to a protocol error by :meth:`ModbusInput.read`)
+    and drop the connection, instead of raising on the event loop (pymodbus 3.16: an
+    unlimited traceback per answer, then a timeout)."""
+    ctx = getattr(client, "ctx", None)
+    decode = getattr(ctx, "callback_data", None)
+    if ctx is None or decode is None:
+        return
+
+    def callback_data(data: bytes, addr: tuple[Any, ...] | None = None) -> int:
+        try:
+            return int(decode(data, addr))
+        except Exception as exc:
+            waiting = getattr(ctx, "response_future", None)
+            if waiting is not None and not waiting.done():
+                waiting.set_exception(UndecodableAnswer(f"undecodable answer: {exc}"))
+            transport = getattr(ctx, "transport", None)
+            if transport is not None:
+                transport.abort()
+            return len(data)
+
+    ctx.callback_data = callback_data
