@@ -536,3 +536,27 @@ def test_eviction_order_is_half_open_then_unread_then_busiest() -> None:
         listener.conns.discard(victim)
     assert order == [(half_open, "limit"), (unread, "unread"), (busy, "busiest"),
                      (quiet, "busiest")]
+
+
+def test_what_reaches_the_event_loop_is_logged_by_place_and_type() -> None:
+    """Finding 3's last resort: asyncio's own report of an exception in a protocol holds
+    the protocol's and the transport's addresses and file descriptor, a new cause for the
+    rate limit every time (16,312 tracebacks in 10 s). ``run`` installs a handler that
+    logs it keyed by place and type: 100 such reports, at most 20 lines."""
+    from gateway.runtime.logs import loop_exception_handler  # noqa: PLC0415
+
+    class Proto(asyncio.Protocol):
+        pass
+
+    async def go() -> None:
+        loop = asyncio.get_running_loop()
+        for k in range(100):
+            loop_exception_handler(loop, {
+                "message": f"Fatal error: protocol.data_received() call failed. fd={k}",
+                "exception": TypeError("bad version"), "protocol": Proto()})
+
+    with _captured("gateway.app") as lines:
+        asyncio.run(go())
+    assert 1 <= len(lines) <= 20, len(lines)
+    assert lines[0].startswith("asyncio, test_what_reaches_the_event_loop_is_logged_by_place"
+                               "_and_type.<locals>.Proto: TypeError: Fatal error")

@@ -10,12 +10,15 @@ filter keeps at most :data:`MAX_CAUSES` causes (the least recent are forgotten).
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
+from typing import Any
 
-__all__ = ["BURST", "MAX_CAUSES", "PERIOD_S", "RateLimit", "install_rate_limit"]
+__all__ = ["BURST", "MAX_CAUSES", "PERIOD_S", "RateLimit", "install_rate_limit",
+           "loop_exception_handler"]
 
 BURST = 20
 PERIOD_S = 60.0
@@ -73,3 +76,22 @@ def install_rate_limit(logger: logging.Logger | None = None) -> list[RateLimit]:
         handler.addFilter(limit)
         limits.append(limit)
     return limits
+
+
+def loop_exception_handler(loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+    """``loop.set_exception_handler``: asyncio's report, keyed by place and type."""
+    exc = context.get("exception")
+    place = "event loop"
+    for key in ("protocol", "task", "future", "handle"):
+        obj = context.get(key)
+        if obj is None:
+            continue
+        if key in ("task", "future") and hasattr(obj, "get_coro"):
+            obj = obj.get_coro()
+        elif key == "handle":
+            obj = getattr(obj, "_callback", obj)
+        place = getattr(obj, "__qualname__", type(obj).__qualname__)
+        break
+    text = " ".join(str(context.get("message", "")).split())[:200]
+    cause = f"asyncio, {place}: {type(exc).__name__ if exc is not None else 'error'}"
+    logging.getLogger("gateway.app").error("%s: %s", cause, text, exc_info=exc)

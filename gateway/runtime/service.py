@@ -20,6 +20,7 @@ from typing import Any
 from ..config import Config
 from ..config.checks import fds_needed
 from .gateway import Gateway
+from .logs import loop_exception_handler
 from .sdnotify import Notifier, watchdog_interval
 
 __all__ = ["Watchdog", "install_stop_signals", "raise_fd_limit", "run", "serve"]
@@ -65,6 +66,8 @@ async def serve(config: Config, stop: asyncio.Event, *, reload: asyncio.Event | 
     """Run a gateway until ``stop`` is set; each time ``reload`` is set, reload the config
     from ``config_path``."""
     notifier = notifier or Notifier(address="")
+    # an exception that reaches the event loop is logged by place and type, rate-limited
+    asyncio.get_running_loop().set_exception_handler(loop_exception_handler)
     async with Gateway(config, **kwargs) as gw:
         log.info("gateway running: %d devices, %d loops; metrics on %s:%s, "
                  "Modbus results on %s:%s (unit ids %s)", len(config.devices),
