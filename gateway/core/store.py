@@ -74,6 +74,11 @@ class ResultStore:
         self.seq_floor[i] = max(int(self.seq_floor[i]), result.seq)
         self._notify(i)
 
+    def clear_result(self, i: int) -> None:
+        """Forget loop ``i``'s result (a restore that failed half-way starts empty)."""
+        self.results[i] = None
+        self._notify(i)
+
     def last_seq(self, i: int) -> int:
         """The highest sequence number loop ``i`` has published (0: none)."""
         res = self.results[i]

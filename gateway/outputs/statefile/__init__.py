@@ -3,7 +3,10 @@ restart. :mod:`.format` writes and reads the file, :mod:`.restore` puts it back.
 
 The sink restores the file when it starts (before any poll), writes it every
 ``gateway.persist_interval_s`` (a failing write is logged once, and once when it works
-again: a full disk must not stop the gateway) and once more when it stops.
+again: a full disk must not stop the gateway) and once more when it stops. With the
+gateway's metrics it counts failed writes (``stiction_state_write_failures_total``), keeps
+the time of the last good one (``stiction_state_last_write_timestamp_seconds``) and counts
+a file set aside at start (``stiction_state_file_set_aside_total{reason}``).
 """
 
 from __future__ import annotations
@@ -24,16 +27,19 @@ __all__ = ["RestoreReport", "StateFile", "create_sink", "read_state", "restore_s
 log = logging.getLogger("gateway.state")
 
 
-def create_sink(binding: Binding, **_: Any) -> StateFile:
-    return StateFile(binding)
+def create_sink(binding: Binding, *, metrics: Any = None, **_: Any) -> StateFile:
+    return StateFile(binding, metrics=metrics)
 
 
 class StateFile:
     """Restores on :meth:`start`, writes periodically and on :meth:`stop`."""
 
-    def __init__(self, binding: Binding, *, wall: Callable[[], float] = time.time) -> None:
+    def __init__(self, binding: Binding, *, wall: Callable[[], float] = time.time,
+                 metrics: Any = None) -> None:
         self.binding = binding
         self.wall = wall
+        self.metrics = metrics  # GatewayMetrics (duck-typed: a sink imports no other)
+        self.failures = 0  # writes that failed
         self.saves = 0
         self.last_save_s = 0.0  # wall time the last write took
         self.report: RestoreReport | None = None
@@ -54,6 +60,8 @@ class StateFile:
         b = self.binding
         self.report = restore_state(self.path, b.config, b.groups, b.store, wall=self.wall(),
                                     time_scale=b.clock.time_scale)
+        if self.report.kind is not None and self.metrics is not None:
+            self.metrics.state_set_aside.labels(reason=self.report.kind).inc()
         self._task = asyncio.create_task(self._persist(), name="persist")
 
     async def save(self, *, final: bool = False) -> int:
@@ -76,6 +84,8 @@ class StateFile:
                 raise
             self.last_save_s = time.perf_counter() - t0
             self.saves += 1
+            if self.metrics is not None:
+                self.metrics.state_last_write.set(wall)
             log.debug("state file %s: %d bytes in %.3f s", self.path, size, self.last_save_s)
             return size
 
@@ -87,6 +97,7 @@ class StateFile:
             try:
                 await self.save()
             except Exception as exc:  # a full disk must not stop the gateway
+                self._failed()
                 if not failing:
                     log.error("state file %s: write failed: %s (retrying every %g s)",
                               self.path, exc, interval)
@@ -106,4 +117,10 @@ class StateFile:
         try:
             await self.save(final=True)
         except Exception:
+            self._failed()
             log.exception("state file: final write failed")
+
+    def _failed(self) -> None:
+        self.failures += 1
+        if self.metrics is not None:
+            self.metrics.state_write_failures.inc()

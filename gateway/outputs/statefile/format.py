@@ -24,7 +24,9 @@ loops start fresh. The time the gateway was down becomes a gap (quality MISSING)
 restored windows. A file that cannot be read (truncated, not an archive, bad header) or
 that is not ours (other format or version) is renamed aside
 (``<file>.corrupt-<time>`` / ``<file>.foreign-<time>``) with a warning; the gateway starts
-fresh and never crashes on it.
+fresh and never crashes on it. The file is untrusted input: its size and the sizes its
+members would unpack to are bounded (:func:`state_bounds`) before anything is decompressed,
+and every field is checked (:mod:`.validate`) before anything is restored.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import os
 import time
 import zipfile
@@ -43,11 +46,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...config.model import Config
+from ...core.points import Quality
 from ...core.store import ResultStore
 from ...core.windows import LoopGroup, loop_signature, result_signature
+from .validate import check_header
 
 __all__ = ["FORMAT", "VERSION", "StateError", "read_state", "set_aside", "snapshot",
-           "write_state"]
+           "state_bounds", "write_state"]
 
 FORMAT = "stiction-gateway-state"
 VERSION = 1
@@ -129,38 +134,124 @@ def write_state(path: str | os.PathLike[str], header: Mapping[str, Any],
 # ------------------------------------------------------------------------ reading
 
 
-def read_state(path: str | os.PathLike[str]) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
-    """Read and check a state file; raise StateError (corrupt/foreign) if unusable."""
+DEFAULT_MAX_BYTES = 2**30  # read_state's bound when the caller gives none
+HEADER_BYTES_PER_LOOP = 16 * 1024  # a loop's entry, its latest assessment included, is ~2 KiB
+_DTYPES: dict[str, np.dtype[Any]] = {
+    "t": np.dtype("<f8"), "op": np.dtype("<f4"), "pv": np.dtype("<f4"), "q": np.dtype("u1")}
+
+
+def state_bounds(banks: Sequence[LoopGroup]) -> tuple[int, int]:
+    """``(bytes, loops)``: the most a state file read for these windows may unpack to and
+    the most loop entries it may hold: twice what the windows hold, plus 16 MiB and 16 KiB
+    of header per loop (room for a file written before some loops were removed)."""
+    loops = sum(len(g.configs) for g in banks)
+    windows = sum(g.bank.nbytes for g in banks)
+    return 2 * windows + HEADER_BYTES_PER_LOOP * max(loops, 1) + 16 * 2**20, 2 * loops + 100
+
+
+def read_state(path: str | os.PathLike[str], *, max_bytes: int = DEFAULT_MAX_BYTES,
+               max_loops: int = 1_000_000
+               ) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+    """Read and check a state file; raise StateError (corrupt/foreign) if unusable.
+
+    The file is untrusted: it is refused unread beyond ``max_bytes``, its members are
+    refused when the sizes they declare (what they would unpack to) exceed ``max_bytes``
+    in all, *before* anything is decompressed; every array must have the type and shape
+    its bank's header says, every header field its type and range
+    (:func:`.validate.check_header`), with at most ``max_loops`` loops."""
+    p = Path(path)
     try:
-        data = Path(path).read_bytes()
-        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
-            arrays = {name: npz[name] for name in npz.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        size = p.stat().st_size
+    except OSError as exc:
+        raise StateError("corrupt", f"cannot read it: {exc.strerror or exc}") from None
+    if size > max_bytes:
+        raise StateError("corrupt", f"{size:,} bytes, more than the {max_bytes:,} a state "
+                         f"file of this config can need")
+    try:
+        archive = zipfile.ZipFile(io.BytesIO(p.read_bytes()))
+    except Exception as exc:  # untrusted bytes: whatever zipfile makes of them
         raise StateError("corrupt", f"not a readable state archive: {exc}") from None
-    blob = arrays.pop("header", None)
-    if blob is None or blob.dtype != np.uint8 or blob.ndim != 1:
-        raise StateError("foreign", "no state header (not a stiction-gateway state file)")
-    try:
-        header = json.loads(blob.tobytes().decode())
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise StateError("corrupt", f"unreadable header: {exc}") from None
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
-        raise StateError("foreign", "not a stiction-gateway state file")
-    if header.get("version") != VERSION:
-        raise StateError("foreign", f"state format version {header.get('version')!r}, "
-                         f"this gateway reads version {VERSION}")
-    try:
-        for k, b in enumerate(header["banks"]):
-            n, rows = len(b["loops"]), len(arrays[f"b{k}_t"])
-            for name in ("op", "pv", "q"):
-                if arrays[f"b{k}_{name}"].shape != (rows, n):
-                    raise ValueError(f"bank {k} {name} has shape "
-                                     f"{arrays[f'b{k}_{name}'].shape}, expected {(rows, n)}")
-            float(header["saved_wall"])
-            float(header["saved_proc"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise StateError("corrupt", f"inconsistent content: {exc}") from None
+    with archive:
+        try:
+            members = {i.filename: i for i in archive.infolist()}
+            declared = sum(i.file_size for i in members.values())
+            if len(members) != len(archive.infolist()) or len(members) > 4 * max_loops + 1:
+                raise ValueError(f"{len(archive.infolist()):,} members")
+            if declared > max_bytes:
+                raise ValueError(f"its members would unpack to {declared:,} bytes, more "
+                                 f"than the {max_bytes:,} a state file of this config can "
+                                 f"need (not unpacked)")
+        except ValueError as exc:
+            raise StateError("corrupt", str(exc)) from None
+        if "header.npy" not in members:
+            raise StateError("foreign", "no state header (not a stiction-gateway state file)")
+        try:
+            blob = _array(archive, members["header.npy"], np.dtype("u1"), "header")
+            header = json.loads(blob.tobytes().decode())
+        except Exception as exc:
+            raise StateError("corrupt", f"unreadable header: {exc}") from None
+        if not isinstance(header, dict) or header.get("format") != FORMAT:
+            raise StateError("foreign", "not a stiction-gateway state file")
+        if header.get("version") != VERSION:
+            raise StateError("foreign", f"state format version {header.get('version')!r}, "
+                             f"this gateway reads version {VERSION}")
+        try:
+            check_header(header, max_loops)
+            arrays = _bank_arrays(archive, members, header["banks"])
+        except Exception as exc:
+            raise StateError("corrupt", f"inconsistent content: {exc}") from None
     return header, arrays
+
+
+def _bank_arrays(archive: zipfile.ZipFile, members: Mapping[str, zipfile.ZipInfo],
+                 banks: Sequence[Mapping[str, Any]]) -> dict[str, NDArray[Any]]:
+    arrays: dict[str, NDArray[Any]] = {}
+    for k, b in enumerate(banks):
+        n = len(b["loops"])
+        for name, dtype in _DTYPES.items():
+            key = f"b{k}_{name}"
+            arr = _array(archive, members.get(f"{key}.npy"), dtype, key)
+            rows = len(arrays[f"b{k}_t"]) if name != "t" else len(arr)
+            want = (rows,) if name == "t" else (rows, n)
+            if arr.shape != want:
+                raise ValueError(f"bank {k} {name} has shape {arr.shape}, expected {want}")
+            arrays[key] = arr
+        if len(arrays[f"b{k}_t"]) > b["size"]:
+            raise ValueError(f"bank {k} holds {len(arrays[f'b{k}_t'])} samples, more than "
+                             f"its size {b['size']}")
+        if not np.isfinite(arrays[f"b{k}_t"]).all():
+            raise ValueError(f"bank {k}: a sample time is not finite")
+        if arrays[f"b{k}_q"].size and int(arrays[f"b{k}_q"].max()) > max(Quality):
+            raise ValueError(f"bank {k}: a quality code above {int(max(Quality))}")
+    extra = set(members) - {"header.npy"} - {f"{key}.npy" for key in arrays}
+    if extra:
+        raise ValueError(f"unexpected members {sorted(extra)[:5]}")
+    return arrays
+
+
+def _array(archive: zipfile.ZipFile, info: zipfile.ZipInfo | None, dtype: np.dtype[Any],
+           what: str) -> NDArray[Any]:
+    """One ``.npy`` member of ``dtype``, its size checked against what the member declares
+    before its data is read (never more than that is unpacked)."""
+    if info is None:
+        raise ValueError(f"no {what}")
+    if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+        raise ValueError(f"{what}: compression method {info.compress_type}")
+    with archive.open(info) as f:
+        version = np.lib.format.read_magic(f)
+        read_head = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                     else np.lib.format.read_array_header_2_0)
+        shape, fortran, found = read_head(f)
+        if fortran or found != dtype:
+            raise ValueError(f"{what}: {found} {'(Fortran order) ' if fortran else ''}where "
+                             f"{dtype} belongs")
+        nbytes = math.prod(shape) * dtype.itemsize
+        if nbytes > info.file_size:
+            raise ValueError(f"{what}: shape {shape} needs more bytes than the member holds")
+        data = f.read(nbytes)
+    if len(data) != nbytes:
+        raise ValueError(f"{what}: truncated")
+    return np.frombuffer(data, dtype=dtype).reshape(shape)
 
 
 def set_aside(path: Path, kind: str) -> Path:

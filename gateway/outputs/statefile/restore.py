@@ -23,10 +23,10 @@ from numpy.typing import NDArray
 from stiction import Assessment
 
 from ...config.model import Config
-from ...core.points import Quality
+from ...core.points import MAX_MAGNITUDE, Quality
 from ...core.store import LoopResult, ResultStore
 from ...core.windows import LoopGroup, load_columns, loop_signature, result_signature
-from .format import StateError, read_state, set_aside
+from .format import StateError, read_state, set_aside, state_bounds
 
 __all__ = ["RestoreReport", "restore_state", "seq_bump"]
 
@@ -41,12 +41,14 @@ class RestoreReport:
     gap_rows: int = 0
     set_aside: Path | None = None
     problem: str | None = None
+    kind: str | None = None  # why it was set aside: corrupt, foreign
 
 
 def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[LoopGroup],
                   store: ResultStore, *, wall: float, time_scale: float) -> RestoreReport:
     """Restore what matches ``config`` into fresh ``banks`` and ``store``. Never raises for
-    a bad file: it is set aside and the report says why."""
+    a bad file: it is set aside (one log line) and the report says why; the gateway starts
+    empty."""
     report = RestoreReport()
     p = Path(path)
     for tmp in p.parent.glob(f".{p.name}.tmp-*"):  # left by a kill in the middle of a write
@@ -54,19 +56,62 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
             tmp.unlink()
     if not p.exists():
         return report
+    max_bytes, max_loops = state_bounds(banks)
     try:
-        header, arrays = read_state(p)
+        header, arrays = read_state(p, max_bytes=max_bytes, max_loops=max_loops)
+        _apply(report, p, header, arrays, config=config, banks=banks, store=store,
+               wall=wall, time_scale=time_scale)
     except StateError as exc:
-        report.problem = str(exc)
-        try:
-            report.set_aside = set_aside(p, exc.kind)
-        except OSError as err:
-            log.warning("state file %s: %s; cannot set it aside (%s); starting fresh",
-                        p, exc, err)
-            return report
-        log.warning("state file %s: %s; moved to %s, starting fresh", p, exc,
-                    report.set_aside)
-        return report
+        _refuse(report, p, exc)
+    except Exception as exc:  # a file the checks let through that still breaks: start empty
+        log.error("state file %s: restoring failed", p, exc_info=exc)
+        _start_empty(banks, store)
+        report.restored_windows = report.restored_results = 0
+        _refuse(report, p, StateError("corrupt", f"cannot be restored: "
+                                      f"{type(exc).__name__}: {exc}"))
+    return report
+
+
+def _refuse(report: RestoreReport, p: Path, exc: StateError) -> None:
+    report.problem, report.kind = str(exc), exc.kind
+    try:
+        report.set_aside = set_aside(p, exc.kind)
+    except OSError as err:
+        log.warning("state file %s: %s; cannot set it aside (%s); starting fresh",
+                    p, exc, err)
+        return
+    log.warning("state file %s: %s; moved to %s, starting fresh", p, exc, report.set_aside)
+
+
+def _start_empty(banks: Sequence[LoopGroup], store: ResultStore) -> None:
+    """Undo a restore that failed half-way: empty windows, no results."""
+    for ref in banks:
+        ref.bank.count = ref.bank.head = 0
+        ref.bank.t[:] = np.nan
+        ref.bank.quality[:] = Quality.MISSING
+    store.seq_floor[:] = 0
+    for i in range(len(store.results)):
+        if store.results[i] is not None:
+            store.clear_result(i)
+
+
+def _plausible(op: NDArray[Any], pv: NDArray[Any], q: NDArray[Any]
+               ) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any]]:
+    """A restored column as polling would have stored it: a GOOD sample that is not
+    finite or beyond :data:`MAX_MAGNITUDE` is BAD (NaN)."""
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(op) & np.isfinite(pv) & (np.abs(op) <= MAX_MAGNITUDE) \
+            & (np.abs(pv) <= MAX_MAGNITUDE)
+    bad = (q == Quality.GOOD) & ~ok
+    if not bad.any():
+        return op, pv, q
+    return (np.where(bad, np.float32(np.nan), op), np.where(bad, np.float32(np.nan), pv),
+            np.where(bad, np.uint8(Quality.BAD), q))
+
+
+def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
+           arrays: dict[str, NDArray[Any]], *, config: Config, banks: Sequence[LoopGroup],
+           store: ResultStore, wall: float, time_scale: float) -> None:
     saved: dict[str, tuple[int, int, dict[str, Any]]] = {}  # name -> (bank, column, entry)
     for k, b in enumerate(header["banks"]):
         for c, entry in enumerate(b["loops"]):
@@ -90,8 +135,8 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
                 continue
             k, c, entry = hit
             t = arrays[f"b{k}_t"]
-            columns[col] = (arrays[f"b{k}_op"][:, c], arrays[f"b{k}_pv"][:, c],
-                            arrays[f"b{k}_q"][:, c])
+            columns[col] = _plausible(arrays[f"b{k}_op"][:, c], arrays[f"b{k}_pv"][:, c],
+                                      arrays[f"b{k}_q"][:, c])
             if len(t) > len(t_best):
                 t_best = t
             if len(t):
@@ -127,7 +172,6 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
     log.info("state file %s: restored %d windows and %d assessments; %d loops start fresh; "
              "downtime gap %d samples", p, report.restored_windows, report.restored_results,
              len(report.fresh), report.gap_rows)
-    return report
 
 
 def seq_bump(header: dict[str, Any], wall: float, interval_wall_s: float) -> int:
