@@ -54,7 +54,8 @@ class PrometheusSink:
         host, port = settings.listen
         return MetricsServer(self.registry, host, port,
                              max_connections=settings.max_connections,
-                             idle_timeout_s=settings.idle_timeout_s, stats=self.stats)
+                             idle_timeout_s=settings.idle_timeout_s, stats=self.stats,
+                             store_series=lambda: self.collector)
 
     async def prepare(self, config: Config) -> Swap | None:
         new = config.metrics

@@ -3,24 +3,52 @@
 No IO and no computation in ``collect()``: the scrape (on the HTTP server's thread) takes an
 immutable :class:`~gateway.core.store.StoreSnapshot`, so a loop removed from the config
 vanishes by itself and a result written meanwhile on the event loop is never half-read.
+
+:meth:`StoreCollector.page` renders a registry holding the collector ten times faster than
+prometheus_client does (2,000 loops: 36,000 lines in about 50 ms instead of 0.5 s, time
+the rendering thread holds the interpreter the pollers share): the other collectors through
+the client's encoder, these series straight from the snapshot's rows, the same lines (the
+tests compare them), last. Only for the escapings that leave legacy names as they are (the
+default; another one renders the slow way).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
+from prometheus_client import CollectorRegistry
 from prometheus_client.core import GaugeMetricFamily, Metric
+from prometheus_client.openmetrics import exposition as om
 from prometheus_client.registry import Collector
+from prometheus_client.utils import floatToGoString
 
-from ...core.store import ResultStore
+from ...core.store import ResultStore, StoreSnapshot
 from ...wire.results import VERDICT_CODES
 
 __all__ = ["PREFIX", "StoreCollector"]
 
 PREFIX = "stiction"
 VERDICTS = tuple(str(v) for v in VERDICT_CODES)
+Rows = list[tuple[tuple[str, ...], float]]
+_FAMILIES = (  # name, help; in the order they are yielded
+    ("stiction_index", "Stiction index of the latest assessment (He et al. 2007)."),
+    ("fd_ratio", "Dynamic friction fd, fraction of valve span."),
+    ("fs_ratio", "Static friction fs, fraction of valve span (needs kp)."),
+    ("jump_ratio", "Valve jump J = fs - fd, fraction of valve span."),
+    ("oscillation_period_seconds", "Oscillation period of the loop."),
+    ("verdict", "1 for the loop's current verdict, 0 for the others."),
+    ("last_assessment_timestamp_seconds", "Unix time of the latest assessment."),
+    ("window_fill_ratio", "Fraction of the window holding good samples."),
+    ("confidence_ratio", "Confidence of stiction in the latest assessment, 0-1 (the tests' "
+     "weighted vote; >= 0.7 is a stiction verdict)."),
+    ("op_percent", "Latest controller output, percent of valve span."),
+    ("pv", "Latest process variable, process units."),
+)
+_FAST_ESCAPINGS = (om.UNDERSCORES, om.ALLOWUTF8)  # legacy names stay as they are
 
 
 class StoreCollector(Collector):
@@ -28,52 +56,111 @@ class StoreCollector(Collector):
 
     def __init__(self, store: ResultStore) -> None:
         self.store = store
+        self._rendering = threading.local()  # set while page() renders the others
 
     def collect(self) -> Iterator[Metric]:
-        st = self.store.snapshot()
+        if getattr(self._rendering, "on", False):
+            return
+        for (name, doc), rows in zip(_FAMILIES, rows_of(self.store.snapshot()), strict=True):
+            labels = ["loop", "verdict"] if name == "verdict" else ["loop"]
+            family = GaugeMetricFamily(f"{PREFIX}_loop_{name}", doc, labels=labels)
+            for values, value in rows:
+                family.add_metric(list(values), value)
+            yield family
 
-        def fam(name: str, doc: str) -> GaugeMetricFamily:
-            return GaugeMetricFamily(f"{PREFIX}_loop_{name}", doc, labels=["loop"])
-
-        si = fam("stiction_index", "Stiction index of the latest assessment (He et al. 2007).")
-        fd = fam("fd_ratio", "Dynamic friction fd, fraction of valve span.")
-        fs = fam("fs_ratio", "Static friction fs, fraction of valve span (needs kp).")
-        jump = fam("jump_ratio", "Valve jump J = fs - fd, fraction of valve span.")
-        period = fam("oscillation_period_seconds", "Oscillation period of the loop.")
-        ts = fam("last_assessment_timestamp_seconds", "Unix time of the latest assessment.")
-        fill = fam("window_fill_ratio", "Fraction of the window holding good samples.")
-        conf = fam("confidence_ratio", "Confidence of stiction in the latest assessment, 0-1 "
-                   "(the tests' weighted vote; >= 0.7 is a stiction verdict).")
-        op = fam("op_percent", "Latest controller output, percent of valve span.")
-        pv = fam("pv", "Latest process variable, process units.")
-        verdict = GaugeMetricFamily(
-            f"{PREFIX}_loop_verdict", "1 for the loop's current verdict, 0 for the others.",
-            labels=["loop", "verdict"])
-        for i, name in enumerate(st.loops):
-            current = st.verdict_name(i)
-            for v in VERDICTS:
-                verdict.add_metric([name, v], 1.0 if v == current else 0.0)
-            _add(op, name, st.latest_op[i])
-            _add(pv, name, st.latest_pv[i])
-            res = st.results[i]
-            if res is None:
-                continue
-            a = res.assessment
-            _add(si, name, a.stiction_index)
-            _add(fd, name, a.fd)
-            _add(fs, name, a.fs)
-            _add(jump, name, a.jump)
-            _add(period, name, a.period_s)
-            _add(ts, name, res.t)
-            _add(fill, name, res.window_fill)
-            _add(conf, name, a.confidence)
-        yield from (si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv)
+    def page(self, registry: CollectorRegistry, encoder: Callable[[Any], bytes],
+             openmetrics: bool) -> bytes:
+        """``encoder(registry)`` with this collector's series rendered fast, last."""
+        escaping = getattr(encoder, "keywords", {}).get("escaping", om.UNDERSCORES)
+        if escaping not in _FAST_ESCAPINGS:
+            return encoder(registry)
+        self._rendering.on = True
+        try:
+            others = encoder(registry)
+        finally:
+            self._rendering.on = False
+        lines: list[str] = []
+        for (name, doc), rows in zip(_FAMILIES, rows_of(self.store.snapshot()), strict=True):
+            lines.append(_head(f"{PREFIX}_loop_{name}", doc, encoder, openmetrics))
+            key = ("loop", "verdict") if name == "verdict" else ("loop",)
+            prefix = f"{PREFIX}_loop_{name}{{"
+            lines.extend([f"{prefix}{_labels(key, values)}}} {_number(value)}\n"
+                          for values, value in rows])
+        text = "".join(lines).encode("utf-8")
+        if openmetrics and others.endswith(b"# EOF\n"):
+            return others[:-6] + text + b"# EOF\n"
+        return others + text
 
 
-def _add(family: GaugeMetricFamily, loop: str, value: object) -> None:
+def rows_of(st: StoreSnapshot) -> list[Rows]:
+    """Per family of :data:`_FAMILIES`, its samples: (label values, value)."""
+    out: list[Rows] = [[] for _ in _FAMILIES]
+    si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv = out
+    for i, name in enumerate(st.loops):
+        current = st.verdict_name(i)
+        verdict.extend(((name, v), 1.0 if v == current else 0.0) for v in VERDICTS)
+        _add(op, name, st.latest_op[i])
+        _add(pv, name, st.latest_pv[i])
+        res = st.results[i]
+        if res is None:
+            continue
+        a = res.assessment
+        for rows, value in ((si, a.stiction_index), (fd, a.fd), (fs, a.fs), (jump, a.jump),
+                            (period, a.period_s), (ts, res.t), (fill, res.window_fill),
+                            (conf, a.confidence)):
+            _add(rows, name, value)
+    return out
+
+
+def _add(rows: Rows, loop: str, value: object) -> None:
     """Add a finite number; anything else (None, NaN, a value of another type that a
     damaged state file might hold) is left out, never an error of the whole scrape."""
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
         return
     if math.isfinite(value):
-        family.add_metric([loop], float(value))
+        rows.append(((loop,), float(value)))
+
+
+_HEADS: dict[tuple[str, bool], str] = {}
+_LABELS: dict[tuple[tuple[str, ...], tuple[str, ...]], str] = {}  # rendered label sets
+
+
+def _head(name: str, doc: str, encoder: Callable[[Any], bytes], openmetrics: bool) -> str:
+    """``# HELP`` and ``# TYPE`` lines as the encoder writes them (rendered by it once per
+    format: the fast escapings write legacy names alike)."""
+    key = (name, openmetrics)
+    head = _HEADS.get(key)
+    if head is None:
+        class One(Collector):
+            def collect(self) -> Iterator[Metric]:
+                yield GaugeMetricFamily(name, doc, labels=["loop"])
+
+        one = CollectorRegistry()
+        one.register(One())
+        head = encoder(one).decode("utf-8").removesuffix("# EOF\n")
+        _HEADS[key] = head
+    return head
+
+
+def _labels(keys: tuple[str, ...], values: tuple[str, ...]) -> str:
+    """``loop="FIC101"``, values escaped as the client escapes them (kept for the next
+    page: the loops rarely change)."""
+    out = _LABELS.get((keys, values))
+    if out is None:
+        out = ",".join(f'{k}="{_escaped(v)}"' for k, v in zip(keys, values, strict=True))
+        if len(_LABELS) > 500_000:
+            _LABELS.clear()
+        _LABELS[keys, values] = out
+    return out
+
+
+def _escaped(value: str) -> str:
+    return value.replace("\\", r"\\").replace("\n", r"\n").replace('"', r"\"")
+
+
+def _number(value: float) -> str:
+    if value == 1.0:
+        return "1.0"
+    if value == 0.0 and math.copysign(1.0, value) > 0:
+        return "0.0"
+    return str(floatToGoString(value))  # type: ignore[no-untyped-call]
