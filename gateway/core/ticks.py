@@ -9,9 +9,9 @@
   device goes down and when it recovers, so each outage is logged once.
 * :class:`StaleTracker`: which loops have had no fresh sample for :data:`STALE_POLLS` polls.
 * :class:`SetTracker`: which members of a set (failing blocks, bad points) came and went.
-* :class:`Lag`: whether a device keeps its poll interval (no tick missed, no poll started
-  over half an interval late, for a while); :func:`missed_times`: when the missed ticks
-  were due (each gap row keeps its own time).
+* :class:`Lag`: whether a device keeps its poll interval (fewer than one tick in ten missed
+  over the last minute); :func:`missed_times`: when the missed ticks were due (each gap row
+  keeps its own time).
 * :func:`stalled`: whether a poller made no progress for longer than a tick may take.
 
 The runtime's poller reads the clocks once per tick and passes them in; tests pass numbers.
@@ -19,6 +19,7 @@ The runtime's poller reads the clocks once per tick and passes them in; tests pa
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import math
 import random
@@ -27,7 +28,7 @@ from collections.abc import Hashable, Iterable, Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["AUTH_RETRY_CAP_S", "LAG_HOLD_S", "STALE_POLLS", "Backoff", "Lag", "Link",
+__all__ = ["AUTH_RETRY_CAP_S", "LAG_WINDOW_S", "STALE_POLLS", "Backoff", "Lag", "Link",
            "ProcessClock", "SetTracker", "StaleTracker", "TickGrid", "missed_times", "stalled"]
 
 STALE_POLLS = 3
@@ -35,9 +36,9 @@ STALE_POLLS = 3
 AUTH_RETRY_CAP_S = 60.0
 """Least cap of the backoff after a refused login or certificate (kind ``auth``): from the
 first refusal on, the next attempt waits between half of it and all of it (30-60 s)."""
-LAG_HOLD_S = 60.0
-"""A device is behind schedule until this long (or 10 intervals, if longer) has passed
-without a missed tick or a late poll (so that a scrape every 15 s sees it)."""
+LAG_WINDOW_S = 60.0
+"""The window over which :class:`Lag` counts a device's missed ticks (or 10 intervals, if
+longer)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,35 +83,43 @@ def missed_times(due: float, missed: int, period: float, rows: int) -> list[floa
     return [due + k * period for k in range(first, missed)]
 
 
-@dataclasses.dataclass
 class Lag:
-    """Whether a device keeps its poll interval ``period``: it falls behind at a missed
-    tick or at a poll that started more than half an interval late, and catches up once
-    ``hold_s`` (default: :data:`LAG_HOLD_S` or 10 intervals) passed without either."""
+    """Whether a device keeps its poll interval ``period``: it falls *behind* once the ticks
+    it missed within the last ``window_s`` (default :data:`LAG_WINDOW_S`, or 10 intervals
+    if longer) reach a tenth of the window's ticks (at least 2), and catches up when they
+    fall under a twentieth. A lone hiccup is not a device that cannot keep its interval
+    (its missed tick is still counted and is still a gap); a device that misses one tick in
+    ten is, and stays flagged for up to a window after."""
 
-    period: float
-    hold_s: float = 0.0
-    behind: bool = False
-    since: float = 0.0  # when the latest missed tick or late poll was seen
-    missed: int = 0  # ticks missed since it fell behind
+    def __init__(self, period: float, window_s: float | None = None) -> None:
+        self.period = period
+        self.window_s = window_s or max(LAG_WINDOW_S, 10 * period)
+        self.behind = False
+        self.missed = 0  # ticks missed within the window
+        self._events: collections.deque[tuple[float, int]] = collections.deque()
+        self._start: float | None = None
 
-    def __post_init__(self) -> None:
-        if self.hold_s <= 0:
-            self.hold_s = max(LAG_HOLD_S, 10 * self.period)
+    def ticks(self, now: float) -> float:
+        """Ticks the window holds at ``now`` (at least 10: a fresh start is judged too)."""
+        start = now if self._start is None else self._start
+        return max(10.0, min(self.window_s, now - start) / self.period)
 
-    def update(self, now: float, missed: int, late: float) -> bool | None:
-        """A tick starts at ``now``, ``late`` seconds after it was due, after ``missed``
-        ticks were missed. True when the device just fell behind, False when it just
-        caught up, else None."""
-        if missed or late > self.period / 2:
-            self.since = now
+    def update(self, now: float, missed: int) -> bool | None:
+        """A tick starts at ``now`` after ``missed`` missed ones. True when the device just
+        fell behind, False when it just caught up, else None."""
+        if self._start is None:
+            self._start = now
+        if missed:
+            self._events.append((now, missed))
             self.missed += missed
-            if not self.behind:
-                self.behind = True
-                return True
-            return None
-        if self.behind and now - self.since >= self.hold_s:
-            self.behind, self.missed = False, 0
+        while self._events and now - self._events[0][0] > self.window_s:
+            self.missed -= self._events.popleft()[1]
+        ticks = self.ticks(now)
+        if not self.behind and self.missed >= max(2.0, 0.10 * ticks):
+            self.behind = True
+            return True
+        if self.behind and self.missed < 0.05 * ticks:
+            self.behind = False
             return False
         return None
 

@@ -4,8 +4,9 @@
 ticks missed because a poll overran become gap rows at their own due times, counted in
 ``missed_ticks`` and ``stiction_poll_missed_ticks_total``; how late each poll starts goes to
 ``stiction_poll_lateness_seconds``; a device that cannot keep its interval is flagged,
-:class:`~gateway.core.ticks.Lag`, ``stiction_device_behind_schedule``, one log line each way,
-and its loops go stale as for any tick without a sample) and calls
+:class:`~gateway.core.ticks.Lag` (a tenth of its ticks missed within a minute),
+``stiction_device_behind_schedule``, one log line each way, and its loops go stale as for
+any tick without a sample) and calls
 :meth:`DevicePoller.tick`, which reads the clocks once and does one poll: (re)connect when
 the :class:`~gateway.core.ticks.Link` allows it, read under a hard time limit, turn raw
 values into engineering values (:class:`~gateway.core.points.PointTable`), append one sample
@@ -276,15 +277,15 @@ class DeviceReport:
         if m is not None:
             m.missed_ticks.labels(device=self.name).inc(missed)
             m.poll_lateness.labels(device=self.name).observe(max(0.0, late))
-        change = self.lag.update(now, missed, late) if up else None
+        change = self.lag.update(now, missed) if up else None
         if change is None:
             return
         if m is not None:
             m.behind.labels(device=self.name).set(1 if change else 0)
         if change:
-            log.warning("device %s: polls cannot keep poll_interval_s (%g s): %d tick(s) "
-                        "missed, this poll started %.2f s late; missed ticks are gaps",
-                        self.name, self.interval_s, missed, max(0.0, late))
+            log.warning("device %s: polls cannot keep poll_interval_s (%g s): %d of the "
+                        "last %d ticks missed (their samples are gaps)", self.name,
+                        self.interval_s, self.lag.missed, round(self.lag.ticks(now)))
         else:
             log.warning("device %s: polls keep their schedule again", self.name)
 

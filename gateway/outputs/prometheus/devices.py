@@ -50,8 +50,8 @@ class GatewayMetrics:
             "due.", ["device"], buckets=LATENESS_BUCKETS, registry=registry)
         self.behind = Gauge(
             f"{PREFIX}_device_behind_schedule", "1 while polls of the device cannot keep "
-            "its poll_interval_s (a tick missed or a poll started over half an interval "
-            "late within the last minute).", ["device"], registry=registry)
+            "its poll_interval_s: a tenth of its ticks missed within the last minute (10 "
+            "intervals if longer).", ["device"], registry=registry)
         self.analysis_duration = Histogram(
             f"{PREFIX}_analysis_duration_seconds", "Worker time to analyse one loop window.",
             buckets=(0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5),
