@@ -560,3 +560,36 @@ def test_what_reaches_the_event_loop_is_logged_by_place_and_type() -> None:
     assert 1 <= len(lines) <= 20, len(lines)
     assert lines[0].startswith("asyncio, test_what_reaches_the_event_loop_is_logged_by_place"
                                "_and_type.<locals>.Proto: TypeError: Fatal error")
+
+
+@pytest.mark.timeout(60)
+def test_an_error_while_answering_an_http_request_answers_500() -> None:
+    """Every serving path answers: an exception while a request is handled (here: taking
+    its page) raised on the event loop on main (no answer, asyncio's traceback). It is
+    answered 500, logged by cause and counted; the server serves the next client."""
+    registry = CollectorRegistry()
+
+    async def go() -> tuple[bytes, bytes, dict[str, int]]:
+        server = MetricsServer(registry, "127.0.0.1", 0, max_connections=4,
+                               idle_timeout_s=30)
+        await server.start()
+        page = server.page
+
+        def broken(*args: Any) -> Any:
+            raise RuntimeError("a bug")
+
+        server.page = broken  # type: ignore[method-assign]
+        try:
+            failed = await asyncio.to_thread(_http, server.port,
+                                             b"GET /metrics HTTP/1.1\r\n\r\n")
+            server.page = page  # type: ignore[method-assign]
+            ok = await asyncio.to_thread(_http, server.port, b"GET /metrics HTTP/1.1\r\n\r\n")
+        finally:
+            await server.stop()
+        return failed, ok, dict(getattr(server.listener.stats, "errors", {}))
+
+    with _captured("gateway.server") as lines:
+        failed, ok, errors = asyncio.run(asyncio.wait_for(go(), 50))
+    assert failed.startswith(b"HTTP/1.1 500 ") and ok.startswith(b"HTTP/1.1 200 OK")
+    assert errors["request"] == 1 and len(lines) == 1
+    assert "metrics server, request: RuntimeError" in lines[0]

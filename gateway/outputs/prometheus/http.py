@@ -89,7 +89,12 @@ class _HttpConn(Conn):
             head = bytes(self.buffer[:end.start()])
             del self.buffer[:end.end()]
             done += 1
-            self._request(head.decode("latin-1"))
+            try:
+                self._request(head.decode("latin-1"))
+            except Exception as exc:  # answered, counted, logged: never the event loop's
+                self.listener.failed("request", exc)
+                self.busy = False
+                self._reply(500, b"the request could not be answered\n", keep=False)
         return done
 
     def _request(self, head: str) -> None:
@@ -135,6 +140,13 @@ class _HttpConn(Conn):
         self.busy = False
         if self.closed:
             return
+        try:
+            self._answer(future, keep, head)
+        except Exception as exc:  # a callback's exception would reach the event loop
+            self.listener.failed("request", exc)
+            self.drop("error")
+
+    def _answer(self, future: asyncio.Future[Page], keep: bool, head: bool) -> None:
         if future.cancelled() or future.exception() is not None:
             self._reply(500, b"the metrics could not be rendered\n", keep=False)
             return
