@@ -215,3 +215,26 @@ def test_register_garbage_is_bad_even_with_no_range() -> None:
     assert asyncio.run(go()) == [None, None, 1.0e15, 20.0]
     q = h.window("A")[3]
     assert q.tolist() == [Quality.BAD, Quality.BAD, Quality.GOOD, Quality.GOOD]
+
+
+def test_a_reload_keeps_the_flag_of_a_device_behind_schedule() -> None:
+    """The flag is the poller's state: a reload that keeps a device's connection keeps it
+    (and its gauge); one that rebuilds the device starts it on schedule (gauge 0), never a
+    gauge left at 1 that nothing clears."""
+    raw = mconfig([memory_device("plc", wiggle(50, 2), poll_interval_s=1.0, repeat=True)],
+                  [mloop("A", "plc", 0, 0, window_s=60.0)])
+    first = Harness(parse_config(raw, "first"))
+    lag = first.poller("plc").report.lag
+    for t in range(3):
+        first.poller("plc").report.schedule(1, 0.0, float(t), up=True)
+    assert lag.behind and first.metric("stiction_device_behind_schedule", device="plc") == 1
+    kept = build_runtime(parse_config(raw, "kept"), first.runtime, wall=first.time.wall,
+                         metrics=first.metrics)
+    assert kept.pollers[0].report.lag is lag
+    assert first.metric("stiction_device_behind_schedule", device="plc") == 1
+    raw["devices"][0]["poll_interval_s"] = 2.0
+    raw["loops"][0]["window_s"] = 120.0
+    rebuilt = build_runtime(parse_config(raw, "rebuilt"), kept, wall=first.time.wall,
+                            metrics=first.metrics)
+    assert not rebuilt.pollers[0].report.lag.behind
+    assert first.metric("stiction_device_behind_schedule", device="plc") == 0

@@ -116,7 +116,7 @@ class DevicePoller:
     def take_over(self, old: DevicePoller) -> None:
         """Continue ``old``'s connection state (same device, same source) after a reload."""
         self.connected, self.link = old.connected, old.link
-        self.report.blocks = old.report.blocks
+        self.report.take_over(old.report)
         self._connects = old._connects
 
     def request_stop(self) -> None:
@@ -269,6 +269,18 @@ class DeviceReport:
         self.blocks = SetTracker()  # failing blocks ("holding 100+4")
         self.bad = SetTracker()  # points with implausible values
         self.lag = Lag(period)
+        self._behind(False)  # a new poller starts on schedule (a reload rebuilds it)
+
+    def take_over(self, old: DeviceReport) -> None:
+        """Go on with ``old``'s failing blocks and, at the same interval, its schedule."""
+        self.blocks = old.blocks
+        if old.lag.period == self.lag.period:
+            self.lag = old.lag
+            self._behind(self.lag.behind)
+
+    def _behind(self, behind: bool) -> None:
+        if self.metrics is not None:
+            self.metrics.behind.labels(device=self.name).set(1 if behind else 0)
 
     def schedule(self, missed: int, late: float, now: float, *, up: bool) -> None:
         """A tick starts ``late`` s after it was due, ``missed`` ticks after the last; a
@@ -280,8 +292,7 @@ class DeviceReport:
         change = self.lag.update(now, missed) if up else None
         if change is None:
             return
-        if m is not None:
-            m.behind.labels(device=self.name).set(1 if change else 0)
+        self._behind(change)
         if change:
             log.warning("device %s: polls cannot keep poll_interval_s (%g s): %d of the "
                         "last %d ticks missed (their samples are gaps)", self.name,
