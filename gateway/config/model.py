@@ -59,7 +59,7 @@ class GatewaySettings:
 @dataclasses.dataclass(frozen=True)
 class MetricsSettings:
     listen: tuple[str, int] = ("127.0.0.1", 9108)
-    max_connections: int = 16  # at once; beyond, the least useful connection is closed
+    max_connections: int = 16  # at once; beyond, a newcomer closes the costliest one
     idle_timeout_s: float = 30.0  # a connection that sends nothing this long is closed
 
 

@@ -120,7 +120,7 @@ def test_build_info_names_the_site_and_area_of_the_config() -> None:
     "text/plain; version=1.0.0; escaping=allow-utf-8",
     "application/openmetrics-text; version=1.0.0; escaping=dots"])
 def test_the_fast_page_is_the_client_librarys_page(accept: str) -> None:
-    """StoreCollector.page renders the per-loop series itself (ten times faster: the
+    """StoreCollector.page renders the per-loop series itself (3-5 times faster: the
     rendering thread holds the interpreter the pollers share) and must write exactly what
     prometheus_client writes, in both formats, odd loop names, missing and odd values
     included (an escaping that renames legacy names falls back to the client's encoder)."""

@@ -7,7 +7,7 @@ connection.
 ``Accept`` header picks OpenMetrics or the text format, ``name[]`` query parameters restrict
 the series (as prometheus_client's own server does), gzip when accepted. Rendering runs in
 one worker thread (the collectors read a snapshot of the store; the per-loop series are
-rendered by :meth:`.collector.StoreCollector.page`, ten times faster than the client
+rendered by :meth:`.collector.StoreCollector.page`, 3-5 times faster than the client
 library's encoder); scrapes that arrive while a
 rendering is under way share it, and a page serves later scrapes of the same kind for
 :data:`RENDER_REST` times as long as it took to render, so however many scrapers there are,
