@@ -30,7 +30,7 @@ from gateway.runtime.gateway import Gateway
 from gateway.runtime.service import install_stop_signals
 
 from .config import parse_sim_config
-from .gateway_config import gateway_config
+from .gateway_yaml import gateway_config
 from .sim import PlcSim
 
 __all__ = ["DEMO_LOOPS", "demo_configs", "run_demo"]

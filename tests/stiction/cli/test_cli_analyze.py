@@ -1,0 +1,215 @@
+"""`stiction analyze` and `stiction reproduce`: outputs and every unusable-input case."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from detector_fixtures import write_loop_csv
+
+from stiction import Assessment, Verdict, cli
+from stiction.cli import main
+from stiction.paper.reproduce import reproduce
+from stiction.paper.tables import PAPER_ROWS
+
+
+@pytest.fixture(scope="module")
+def loop_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_loop_csv(tmp_path_factory.mktemp("cli"))
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "in.csv"
+    p.write_text(text)
+    return p
+
+
+def _error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    return capsys.readouterr().err
+
+
+def test_json_is_one_assessment(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["analyze", str(loop_csv), "--kp", "1", "--op-range", "0", "100", "--json"]) == 0
+    out = capsys.readouterr().out
+    a = Assessment.from_dict(json.loads(out))
+    assert a.verdict == Verdict.STICTION
+    assert a.fd is not None
+    assert abs(a.fd / 0.27 - 1) < 0.05
+    assert a.fs is not None
+    assert abs(a.fs / 0.30 - 1) < 0.05
+    assert out.count("\n") == 1
+
+
+def test_text_output(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["analyze", str(loop_csv)]) == 0
+    out = capsys.readouterr().out
+    assert "verdict: stiction" in out
+    assert "fd_op:" in out
+    assert "in OP units (give op_range for fractions of span)" in out
+    assert main(["analyze", str(loop_csv), "--op-range", "0", "100"]) == 0
+    assert "  fd: 0.269" in capsys.readouterr().out
+
+
+def test_utf8_byte_order_mark_is_read(tmp_path: Path, loop_csv: Path,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "bom.csv"
+    p.write_bytes(b"\xef\xbb\xbf" + loop_csv.read_bytes())
+    assert main(["analyze", str(p)]) == 0
+    assert "verdict: stiction" in capsys.readouterr().out
+
+
+def test_historian_time_stamps_go_on_a_grid(tmp_path: Path, loop_csv: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """A repeated time stamp keeps its last row; rows missing from the grid are gaps."""
+    data = np.genfromtxt(loop_csv, delimiter=",", names=True)
+    keep = np.ones(data.size, dtype=bool)
+    keep[[50, 51, 700]] = False  # three rows missing
+    rows = [(t, o, v) for (t, o, v), k in zip(data, keep, strict=True) if k]
+    rows.insert(10, (rows[10][0], 0.0, 0.0))  # repeated stamp: the later row wins
+    p = tmp_path / "hist.csv"
+    p.write_text("t,op,pv\n" + "".join(f"{t:g},{o:.9g},{v:.9g}\n" for t, o, v in rows))
+    assert main(["analyze", str(p)]) == 0
+    out = capsys.readouterr().out
+    assert "verdict: stiction" in out
+    assert "1 rows repeat a time stamp (on a 1 s grid): the last of each kept" in out
+    assert "3 samples missing from the 1 s time grid: treated as gaps" in out
+    assert "interpolated 3 missing samples" in out
+
+
+def test_columns_and_ts_options(tmp_path: Path, loop_csv: Path,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    data = np.loadtxt(loop_csv, delimiter=",", skiprows=1)
+    p = tmp_path / "renamed.csv"
+    np.savetxt(p, data[:, 1:], delimiter=",", header="OUT,MEAS", comments="", fmt="%.9g")
+    assert main(["analyze", str(p), "--op", "OUT", "--pv", "MEAS", "--ts", "1", "--json",
+                 "--op-range", "0", "100", "--delay", "0", "--process", "self-regulating"]) == 0
+    assert json.loads(capsys.readouterr().out)["verdict"] == "stiction"
+
+
+def test_plot(loop_csv: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("matplotlib")
+    png = tmp_path / "a.png"
+    assert main(["analyze", str(loop_csv), "--kp", "1", "--plot", str(png)]) == 0
+    assert png.stat().st_size > 1000
+    assert f"wrote {png}" in capsys.readouterr().out
+
+
+def test_unfit_data_is_bad_data_not_an_error(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "t,op,pv\n" + "".join(f"{i},50,{i % 3}\n" for i in range(10)))
+    assert main(["analyze", str(p), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["verdict"] == "bad_data"
+    assert "too short" in d["reason"]
+
+
+def test_missing_cells_are_gaps(tmp_path: Path, loop_csv: Path,
+                                capsys: pytest.CaptureFixture[str]) -> None:
+    lines = loop_csv.read_text().splitlines()
+    lines[100] = lines[100].rsplit(",", 1)[0] + ","
+    lines[200] = lines[200].rsplit(",", 1)[0] + ",nan"
+    p = _write(tmp_path, "\n".join(lines) + "\n")
+    assert main(["analyze", str(p), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["verdict"] == "stiction"
+    assert any("interpolated 2" in w for w in d["warnings"])
+
+
+# ------------------------------------------------------------------- unusable input
+def test_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    err = _error(capsys, ["analyze", str(tmp_path / "nope.csv")])
+    assert "nope.csv: no such file" in err
+
+
+def test_empty_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert "empty file" in _error(capsys, ["analyze", str(_write(tmp_path, ""))])
+
+
+@pytest.mark.parametrize("col", ["op", "pv"])
+def test_missing_column(tmp_path: Path, capsys: pytest.CaptureFixture[str], col: str) -> None:
+    header = "t,op" if col == "pv" else "t,pv"
+    p = _write(tmp_path, f"{header}\n0,1\n1,2\n")
+    assert f"no column '{col}'" in _error(capsys, ["analyze", str(p)])
+
+
+def test_missing_time_column(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "op,pv\n1,2\n2,3\n")
+    err = _error(capsys, ["analyze", str(p)])
+    assert "no column 't'" in err
+    assert "--ts" in err
+
+
+def test_non_numeric_cell(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "t,op,pv\n0,1,2\n1,abc,3\n")
+    err = _error(capsys, ["analyze", str(p)])
+    assert "line 3" in err
+    assert "'op'" in err
+    assert "'abc'" in err
+
+
+@pytest.mark.parametrize("rows", ["", "0,1,2\n"])
+def test_fewer_than_two_samples(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                rows: str) -> None:
+    p = _write(tmp_path, "t,op,pv\n" + rows)
+    assert "need at least 2" in _error(capsys, ["analyze", str(p)])
+
+
+def test_time_going_backwards(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "t,op,pv\n" + "".join(f"{t},1,2\n" for t in (0, 2, 1)))
+    err = _error(capsys, ["analyze", str(p)])
+    assert "time goes backwards at line 4 (2 -> 1)" in err
+
+
+def test_one_time_stamp_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "t,op,pv\n" + "".join(f"{t},1,2\n" for t in (5, 5, 5)))
+    assert "holds one time only; give --ts S" in _error(capsys, ["analyze", str(p)])
+
+
+def test_missing_time(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "t,op,pv\n0,1,2\n,1,2\n")
+    assert "column 't' has a missing time at line 3" in _error(capsys, ["analyze", str(p)])
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [(["--ts", "0"], "--ts"), (["--kp", "0"], "--kp"), (["--delay", "-1"], "--delay"),
+     (["--op-range", "100", "0"], "--op-range")],
+)
+def test_bad_option_values_name_the_option(loop_csv: Path, capsys: pytest.CaptureFixture[str],
+                                           args: list[str], option: str) -> None:
+    argv = ["analyze", str(loop_csv), *args]
+    if args[0] == "--ts":
+        argv = ["analyze", str(loop_csv), "--ts", "0"]
+        p = loop_csv.with_name("no_t.csv")
+        data = np.loadtxt(loop_csv, delimiter=",", skiprows=1)
+        np.savetxt(p, data[:, 1:], delimiter=",", header="op,pv", comments="")
+        argv = ["analyze", str(p), "--ts", "0"]
+    assert f"error: {option}:" in _error(capsys, argv)
+
+
+def test_time_and_ts_are_exclusive(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert "not allowed with" in _error(capsys, ["analyze", str(loop_csv), "--time", "t",
+                                                 "--ts", "1"])
+
+
+def test_reproduce_rejects_negative_noise(capsys: pytest.CaptureFixture[str]) -> None:
+    assert "--noise" in _error(capsys, ["reproduce", "--noise", "-1"])
+
+
+def test_reproduce_prints_paper_beside_ours(monkeypatch: pytest.MonkeyPatch,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    def table4_only(**kw: object) -> object:
+        return reproduce(rows=[r for r in PAPER_ROWS if r.table == 4], **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(cli, "reproduce", table4_only)
+    assert main(["reproduce", "--noise", "0"]) == 0
+    out = capsys.readouterr().out
+    assert "PV noise SD 0," in out
+    assert out.count("stiction") >= 2
+    assert "0.270 (  0.0%)" in out  # the paper's Table 4 case 2 fd
+    assert "mean abs error paper" in out
