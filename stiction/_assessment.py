@@ -23,6 +23,9 @@ class Verdict(enum.StrEnum):
     NOT_OSCILLATING = "not_oscillating"
     BAD_DATA = "bad_data"
     VALVE_NOT_RESPONDING = "valve_not_responding"
+    PROPAGATED = "propagated"
+    """The loop carries a cycle it shares with others whose source is elsewhere (another
+    loop, or outside): set by the plant view (:mod:`stiction.plant`), never by ``analyze``."""
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

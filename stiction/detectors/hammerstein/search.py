@@ -76,6 +76,7 @@ class HammersteinFit:
     dead_time: float | None
     vote: int
     note: str
+    stats: Stats | None = None  # what the vote read (None when the fit abstained)
 
     def evidence(self) -> Evidence:
         """Test ``"hammerstein"``, value the improvement over the linear valve."""
@@ -365,7 +366,7 @@ def _result(w: _Prepared, c: _Coarse, b: _Best, *, ts: float, k: float, integrat
         rss_sticky=rss_st, rss_linear=rss_lin, improvement=improvement, delta_aic=delta_aic,
         n_eff=n_eff, fs=fs * su, fd=fd * su, band=band * su, jump=b.best_j * su, gain=gain_pv,
         tau=None if integrating else b.tau_f * w.p * ts, dead_time=b.lag * w.q * ts,
-        vote=vote, note=note)
+        vote=vote, note=note, stats=stats)
 
 
 def controller_sign(u: FloatArray, y: FloatArray, period: float) -> float:
