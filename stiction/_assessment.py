@@ -15,7 +15,12 @@ __all__ = ["Assessment", "Evidence", "Verdict"]
 
 
 class Verdict(enum.StrEnum):
-    """What the analysis concluded about one window of one loop."""
+    """What the analysis concluded about one window of one loop.
+
+    ``WARMING_UP`` is never returned by :func:`stiction.analyze`: the gateway gives it to a
+    window that is still filling where the analysis found no oscillation (a slower one may
+    not have enough cycles in it yet), instead of a ``NOT_OSCILLATING`` that sounds final.
+    """
 
     STICTION = "stiction"
     NO_STICTION = "no_stiction"
@@ -23,6 +28,7 @@ class Verdict(enum.StrEnum):
     NOT_OSCILLATING = "not_oscillating"
     BAD_DATA = "bad_data"
     VALVE_NOT_RESPONDING = "valve_not_responding"
+    WARMING_UP = "warming_up"
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

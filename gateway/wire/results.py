@@ -53,8 +53,10 @@ VERDICT_CODES: dict[str, int] = {
     Verdict.BAD_DATA: 5,
     "stale": 6,
     Verdict.VALVE_NOT_RESPONDING: 7,
+    Verdict.WARMING_UP: 8,
 }
-"""Verdict codes of register +0 ("none": no assessment yet; "stale": no fresh samples)."""
+"""Verdict codes of register +0 ("none": no assessment yet; "stale": no fresh samples;
+"warming_up": the window is still filling and no oscillation is seen yet)."""
 
 
 @dataclasses.dataclass(frozen=True)
