@@ -8,9 +8,11 @@ import dataclasses
 import json
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from .._assessment import Assessment
 from ..diagnosis.analyze import analyze_details
 from ._common import Subparsers, UsageError
 from .plot import plot_analysis
@@ -35,8 +37,8 @@ def add_analyze(sub: Subparsers) -> None:
     p.add_argument("--process", choices=("self-regulating", "integrating"),
                    default="self-regulating")
     p.add_argument("--op-range", dest="op_range", nargs=2, type=float, metavar=("LO", "HI"),
-                   default=None, help="OP at 0 %% and 100 %% valve span, to report sizes as "
-                   "fractions of span (default: sizes in OP units; no OP range is assumed)")
+                   default=None, help="OP at 0 %% and 100 %% valve span, to report sizes in %% of "
+                   "span (default: sizes in OP units; no OP range is assumed)")
     p.add_argument("--json", action="store_true", help="print the assessment as one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to FILE.png")
     p.set_defaults(handler=_cmd_analyze)
@@ -93,13 +95,21 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
                         op_range=op_range)
     a = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
     if args.json:
-        print(json.dumps(a.to_dict()))
+        print(json.dumps(view(a)))
     else:
         print(f"verdict: {a.verdict}")
         print(f"reason:  {a.reason}")
-        for key, val in a.to_dict().items():
-            if key not in {"verdict", "reason", "warnings", "evidence"} and val is not None:
+        shown = view(a)
+        for key, val in shown.items():
+            if key not in {"verdict", "reason", "warnings", "evidence", "size"} and \
+                    val is not None:
                 print(f"  {key}: {val:.4g}" if isinstance(val, float) else f"  {key}: {val}")
+        size = shown["size"]
+        for key in ("fd", "fs", "jump") if size else ():
+            if size[key] is not None:
+                print(f"  {key}: {size[key]:.4g} {size['unit']}")
+        if size and "cycles_used" in size:
+            print(f"  cycles_used: {size['cycles_used']} (limit cycles whose jumps were read)")
         if a.evidence:
             print("  evidence (test, value, vote, what it saw):")
         for e in a.evidence:
@@ -113,6 +123,20 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"wrote {args.plot}")
     return 0
+
+
+SIZE_FIELDS = ("fd", "fs", "jump", "fd_op", "fs_op", "cycles_used")
+
+
+def view(a: Assessment) -> dict[str, Any]:
+    """What ``analyze`` prints: the assessment's fields with the sizes in one unit under
+    ``size`` (:meth:`stiction.Assessment.sizes`: unit, fd, fs, jump and, when read from
+    the limit cycle, cycles_used; None when not sized) instead of fractions beside OP
+    units."""
+    out = {k: v for k, v in a.to_dict().items() if k not in SIZE_FIELDS}
+    sizes = a.sizes()
+    out["size"] = None if sizes is None else sizes.to_dict()
+    return out
 
 
 def _on_grid(path: Path, name: str, t: np.ndarray, op: np.ndarray, pv: np.ndarray

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -33,26 +34,51 @@ def _error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
     return capsys.readouterr().err
 
 
-def test_json_is_one_assessment(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_json_is_one_assessment_with_sizes_in_one_unit(
+        loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 23 item 7: sizes in % of span with --op-range (as the Modbus registers), in
+    OP units without it, always under `size` with their unit; never fractions beside OP
+    units, the jump wherever fd and fs are, cycles_used only when cycles were read."""
     assert main(["analyze", str(loop_csv), "--kp", "1", "--op-range", "0", "100", "--json"]) == 0
     out = capsys.readouterr().out
-    a = Assessment.from_dict(json.loads(out))
-    assert a.verdict == Verdict.STICTION
-    assert a.fd is not None
-    assert abs(a.fd / 0.27 - 1) < 0.05
-    assert a.fs is not None
-    assert abs(a.fs / 0.30 - 1) < 0.05
-    assert out.count("\n") == 1
+    got = json.loads(out)
+    assert out.count("\n") == 1 and got["verdict"] == "stiction"
+    assert not {"fd", "fs", "jump", "fd_op", "fs_op", "cycles_used"} & set(got)
+    size = got["size"]
+    assert size["unit"] == "% of span"
+    assert size["fd"] == pytest.approx(27.0, rel=0.05)
+    assert size["fs"] == pytest.approx(30.0, rel=0.05)
+    assert size["jump"] == pytest.approx(1.99 * (size["fs"] - size["fd"]), rel=1e-6)
+    assert size["cycles_used"] >= 2
+    assert main(["analyze", str(loop_csv), "--json"]) == 0
+    size = json.loads(capsys.readouterr().out)["size"]
+    assert size["unit"] == "OP units" and size["fd"] == pytest.approx(27.0, rel=0.05)
+    assert size["fs"] is None and size["jump"] is None  # fs needs kp
 
 
 def test_text_output(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["analyze", str(loop_csv)]) == 0
     out = capsys.readouterr().out
     assert "verdict: stiction" in out
-    assert "fd_op:" in out
-    assert "in OP units (give op_range for fractions of span)" in out
-    assert main(["analyze", str(loop_csv), "--op-range", "0", "100"]) == 0
-    assert "  fd: 0.269" in capsys.readouterr().out
+    assert re.search(r"^  fd: 2\d\.\d+ OP units$", out, re.M), out
+    assert main(["analyze", str(loop_csv), "--op-range", "0", "100", "--kp", "1"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^  fd: 2\d\.\d+ % of span$", out, re.M), out
+    assert re.search(r"^  jump: \d\.\d+ % of span$", out, re.M), out
+    assert re.search(r"^  cycles_used: \d+ \(limit cycles whose jumps were read\)$", out, re.M)
+
+
+def test_a_size_from_the_fitted_valve_has_its_jump_and_no_cycle_count() -> None:
+    """Issue 23 item 7: a valve sized by the fit to PV (no cycles read) showed
+    `cycles_used: 0` beside its fd and `jump: null` beside fd and fs."""
+    a = Assessment(Verdict.STICTION, "test", fd=0.20, fs=0.25, fd_op=20.0, fs_op=25.0)
+    view = cli.analyze.view(a)
+    assert view["size"] == {"unit": "% of span", "fd": 20.0, "fs": 25.0,
+                            "jump": pytest.approx(1.99 * 5.0)}
+    b = Assessment(Verdict.STICTION, "test", fd_op=2.0, fs_op=2.5)  # no op_range
+    assert cli.analyze.view(b)["size"] == {"unit": "OP units", "fd": 2.0, "fs": 2.5,
+                                           "jump": pytest.approx(1.99 * 0.5)}
+    assert cli.analyze.view(Assessment(Verdict.NO_STICTION, "test"))["size"] is None
 
 
 def test_utf8_byte_order_mark_is_read(tmp_path: Path, loop_csv: Path,
