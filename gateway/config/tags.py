@@ -127,8 +127,8 @@ def read_tag_text(text: str, source: str) -> TagTable:
         row = TagRow(n, {col: cell.strip() for col, cell in zip(header, cells, strict=False)
                          if col in COLUMNS and cell.strip()})
         if len(cells) != len(header):  # its cells would land in the wrong columns
-            table.file_problems.append(_count_problem(source, n, row, len(cells),
-                                                      len(header), delimiter))
+            table.file_problems.append(_count_problem(
+                source, n, row, cells=len(cells), columns=len(header), delimiter=delimiter))
             row.problems += 1
             row.whole = False
         table.rows.append(row)
@@ -137,7 +137,7 @@ def read_tag_text(text: str, source: str) -> TagTable:
     return table
 
 
-def _count_problem(source: str, n: int, row: TagRow, cells: int, columns: int,
+def _count_problem(source: str, n: int, row: TagRow, *, cells: int, columns: int,
                    delimiter: str) -> str:
     """A row with a cell too few or too many: said as such, not by the symptoms of its
     cells read under the wrong columns."""

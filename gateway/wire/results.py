@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stiction import Assessment, Verdict
+
 from .codec import TYPES, decode_registers, encode_values
 
 __all__ = [
@@ -143,8 +144,9 @@ def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
         size = None
     return {"code": code, "seq": result.seq % 65536,
             "stiction_index": _num(a.stiction_index),
-            "fd_percent": _num(size and size.fd), "fs_percent": _num(size and size.fs),
-            "period_s": _num(a.period_s), "jump_percent": _num(size and size.jump),
+            "fd_percent": _num(size.fd if size else None),
+            "fs_percent": _num(size.fs if size else None),
+            "period_s": _num(a.period_s), "jump_percent": _num(size.jump if size else None),
             "timestamp": max(0, int(result.t)),
             "window_fill": result.window_fill, "confidence": _num(a.confidence)}
 

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+from detector_fixtures import cached_sim
 
 from gateway.core.jobs import LoopJob, analyze_batch, bad_values_reason, batches
 from gateway.core.points import Quality
 from gateway.core.windows import LoopGroup, WindowBank
-from stiction import Verdict
+from stiction import Verdict, analyze
 
 G, B, N = Quality.GOOD, Quality.BAD, Quality.NO_COMM
 FAKE = "gateway_fake_analyze:analyze"
@@ -72,7 +73,6 @@ def test_batches_copy_windows_batch_by_batch() -> None:
 
 
 def _sim(name: str, seconds: int) -> tuple[np.ndarray, np.ndarray]:
-    from detector_fixtures import cached_sim
     r = cached_sim(name, 0.02, 3)
     return r.op[:seconds].astype(np.float32), r.pv[:seconds].astype(np.float32)
 
@@ -86,10 +86,9 @@ def test_a_window_still_filling_is_warming_up_never_not_oscillating() -> None:
     """Issue 23 item 4: a sticky level valve (table5-case2) 10 minutes into a 2-hour window
     shows no oscillation yet (its cycle needs more of the window); the verdict says the
     window is warming up, how full it is and what it waits for, not `not_oscillating`."""
-    from stiction import analyze
     op, pv = _sim("table5-case2", 600)
     assert analyze(op, pv, ts=1.0, process="integrating").verdict == Verdict.NOT_OSCILLATING
-    (_, a, fill, n, _), = analyze_batch("stiction:analyze",
+    (_, a, _, n, _), = analyze_batch("stiction:analyze",
                                         [_real_job(op, pv, 7200, "integrating")])
     assert (a.verdict, n) == (Verdict.WARMING_UP, 600)
     assert a.reason == ("warming up: window fill 8%, 10 min of 2 h analysed; no oscillation "

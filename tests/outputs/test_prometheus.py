@@ -18,6 +18,8 @@ from gateway.config import parse_config
 from gateway.core.store import ResultStore
 from gateway.outputs.base import Binding
 from gateway.outputs.prometheus import GatewayMetrics, PrometheusSink, StoreCollector
+from gateway.wire.results import result_block, verdict_code
+from stiction import Assessment, Verdict
 
 
 def _registry() -> CollectorRegistry:
@@ -36,8 +38,6 @@ def _registry() -> CollectorRegistry:
 def test_a_window_warming_up_is_its_own_verdict_in_metrics_and_registers() -> None:
     """Issue 23 item 4: `warming_up` is a verdict series (one-hot with the others) and
     register code 8, as docs/modbus-map.md says."""
-    from gateway.wire.results import result_block, verdict_code
-    from stiction import Assessment, Verdict
     st = ResultStore(["LIC201"])
     st.set_result(0, Assessment(Verdict.WARMING_UP, "warming up: ..."), t=1.7e9,
                   window_fill=0.08, samples=600)

@@ -6,9 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from prometheus_client import CollectorRegistry
 from result_fixtures import NO_KP, sample_store
 
 from gateway.core.store import ResultStore
+from gateway.outputs.prometheus import StoreCollector
 from gateway.wire.results import (
     LAYOUT,
     RESULT_BLOCK_SIZE,
@@ -19,6 +21,7 @@ from gateway.wire.results import (
     unit_images,
     verdict_code,
 )
+from stiction import Assessment, Verdict
 
 
 def _decode_block(regs: np.ndarray, word_order: str = "big") -> dict[str, float]:
@@ -99,10 +102,6 @@ def test_unit_images_hold_every_block() -> None:
 def test_a_fitted_valve_size_fills_the_jump_in_registers_and_metrics() -> None:
     """Issue 23 item 7: fd and fs from the valve fitted to PV (no jump of its own): the
     jump register and series hold J = K (fs - fd) in the one unit, not NaN / nothing."""
-    from prometheus_client import CollectorRegistry
-
-    from gateway.outputs.prometheus import StoreCollector
-    from stiction import Assessment, Verdict
     st = ResultStore(["FIC101"])
     st.set_result(0, Assessment(Verdict.STICTION, "test", fd=0.20, fs=0.25, fd_op=20.0,
                                 fs_op=25.0), t=1.7e9, window_fill=1.0, samples=3600)
