@@ -19,6 +19,7 @@ import dataclasses
 import datetime as dt
 import re
 from collections.abc import Sequence
+from typing import TextIO
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ import numpy as np
 from ._common import UsageError
 
 __all__ = ["DATE_FORMATS", "TIME_COLUMNS", "Table", "column", "numbers", "on_grid",
-           "read_table", "times"]
+           "read_table", "times", "write_export"]
 
 DELIMITERS = (",", ";", "\t")
 TIME_COLUMNS = ("t", "time", "timestamp", "datetime", "date time", "date")
@@ -302,3 +303,18 @@ def on_grid(path: Path, name: str, t: np.ndarray, op: np.ndarray, pv: np.ndarray
     if missing:
         notes.append(f"{missing} samples missing from the {ts:g} s time grid: treated as gaps")
     return ts, grid_op, grid_pv, notes
+
+
+EXPORT_START = dt.datetime(2024, 3, 1, 6, 0, 0, tzinfo=dt.UTC)
+"""The first time stamp :func:`write_export` writes."""
+
+
+def write_export(fh: TextIO, tag: str, t: np.ndarray, op: np.ndarray, pv: np.ndarray) -> None:
+    """OP and PV as a historian exports them (``stiction simulate --historian TAG``): what
+    :func:`read_table` reads without options but ``--op TAG.OP --pv TAG.PV``."""
+    w = csv.writer(fh, delimiter=";", lineterminator="\r\n")
+    w.writerow(["Timestamp", f"{tag}.OP", f"{tag}.PV"])
+    for i, (ti, o, v) in enumerate(zip(t.tolist(), op.tolist(), pv.tolist(), strict=True)):
+        stamp = (EXPORT_START + dt.timedelta(seconds=ti)).strftime("%Y-%m-%d %H:%M:%S")
+        pv_cell = "I/O Timeout" if i % 500 == 250 else f"{v:.4f}".replace(".", ",")
+        w.writerow([stamp, f"{o:.4f}".replace(".", ","), pv_cell])
