@@ -19,8 +19,8 @@ import dataclasses
 import datetime as dt
 import re
 from collections.abc import Sequence
-from typing import TextIO
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
