@@ -141,7 +141,9 @@ def warming_up(a: Assessment, samples: int, size: int, ts: float, fill: float) -
 
 
 def _duration(seconds: float) -> str:
-    """``45 s``, ``4 min``, ``1 h 50 min``, ``2 h``."""
+    """``0.4 s``, ``45 s``, ``4 min``, ``1 h 50 min``, ``2 h``."""
+    if seconds < 10:
+        return f"{seconds:.2g} s"
     s = round(seconds)
     if s < 120:
         return f"{s} s"
