@@ -11,6 +11,7 @@ import numpy as np
 from ..models.signature import valve_signature
 from ..scenarios.named import SCENARIOS, scenario, simulate
 from ._common import Subparsers, UsageError, param_option, pyplot
+from .historian import write_export
 
 # ------------------------------------------------------------------------------ simulate
 _SIM_PARAMS = ("fs", "fd", "k", "kc", "ti", "kp", "tau", "theta", "ts", "sp_step",
@@ -32,6 +33,11 @@ def add_simulate(sub: Subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--duration", type=float, default=None, help="seconds (default: scenario's)")
     p.add_argument("-o", "--output", required=True, type=Path, help="CSV file to write")
+    p.add_argument("--historian", metavar="TAG", default=None,
+                   help="write OP and PV as a process historian exports them instead: "
+                   "columns Timestamp;TAG.OP;TAG.PV, ';'-separated with decimal commas, ISO "
+                   "time stamps from 2024-03-01 06:00:00 (UTC), and PV marked 'I/O Timeout' "
+                   "every 500th row from row 250 (a scan the historian could not read)")
     p.set_defaults(handler=_cmd_simulate)
 
 
@@ -42,9 +48,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     data = np.column_stack([res.t, res.sp, res.op, res.pv, res.vp])
     try:
         with args.output.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["t", "sp", "op", "pv", "vp"])
-            w.writerows(np.round(data, 9).tolist())
+            if args.historian is not None:
+                write_export(fh, args.historian, res.t, res.op, res.pv)
+            else:
+                w = csv.writer(fh)
+                w.writerow(["t", "sp", "op", "pv", "vp"])
+                w.writerows(np.round(data, 9).tolist())
     except OSError as exc:
         raise UsageError(f"cannot write {args.output}: {exc.strerror}") from exc
     sticky = f"fs {sc.fs:g}, fd {sc.fd:g}, K {sc.k:g}" if sc.sticky else "perfect valve"

@@ -9,7 +9,7 @@ import sys
 import stiction
 
 PROMISED = {"Assessment", "ChoudhuryValve", "Evidence", "HeValve", "KanoValve",
-            "ParameterError", "PhysicalParams", "PhysicalValve", "StictionError",
+            "ParameterError", "PhysicalParams", "PhysicalValve", "Sizes", "StictionError",
             "ValveModel", "Verdict", "analyze", "k_from_physical"}
 
 

@@ -35,9 +35,11 @@ class StoreCollector(Collector):
             return GaugeMetricFamily(f"{PREFIX}_loop_{name}", doc, labels=["loop"])
 
         si = fam("stiction_index", "Stiction index of the latest assessment (He et al. 2007).")
-        fd = fam("fd_ratio", "Dynamic friction fd, fraction of valve span.")
+        fd = fam("fd_ratio", "Dynamic friction fd, fraction of valve span (the Modbus "
+                 "registers' and the CLI's % of span / 100).")
         fs = fam("fs_ratio", "Static friction fs, fraction of valve span (needs kp).")
-        jump = fam("jump_ratio", "Valve jump J = fs - fd, fraction of valve span.")
+        jump = fam("jump_ratio", "Valve jump J = K (fs - fd), K = 1.99, fraction of valve "
+                   "span (needs kp).")
         period = fam("oscillation_period_seconds", "Oscillation period of the loop.")
         ts = fam("last_assessment_timestamp_seconds", "Unix time of the latest assessment.")
         fill = fam("window_fill_ratio", "Fraction of the window holding good samples.")
@@ -59,9 +61,11 @@ class StoreCollector(Collector):
                 continue
             a = res.assessment
             _add(si, name, a.stiction_index)
-            _add(fd, name, a.fd)
-            _add(fs, name, a.fs)
-            _add(jump, name, a.jump)
+            size = a.sizes()
+            if size is not None and size.of_span:  # % of span -> the base unit, 0-1
+                _add(fd, name, size.fd / 100.0)
+                _add(fs, name, None if size.fs is None else size.fs / 100.0)
+                _add(jump, name, None if size.jump is None else size.jump / 100.0)
             _add(period, name, a.period_s)
             _add(ts, name, res.t)
             _add(fill, name, res.window_fill)

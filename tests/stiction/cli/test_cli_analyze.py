@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -33,26 +35,51 @@ def _error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
     return capsys.readouterr().err
 
 
-def test_json_is_one_assessment(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_json_is_one_assessment_with_sizes_in_one_unit(
+        loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 23 item 7: sizes in % of span with --op-range (as the Modbus registers), in
+    OP units without it, always under `size` with their unit; never fractions beside OP
+    units, the jump wherever fd and fs are, cycles_used only when cycles were read."""
     assert main(["analyze", str(loop_csv), "--kp", "1", "--op-range", "0", "100", "--json"]) == 0
     out = capsys.readouterr().out
-    a = Assessment.from_dict(json.loads(out))
-    assert a.verdict == Verdict.STICTION
-    assert a.fd is not None
-    assert abs(a.fd / 0.27 - 1) < 0.05
-    assert a.fs is not None
-    assert abs(a.fs / 0.30 - 1) < 0.05
-    assert out.count("\n") == 1
+    got = json.loads(out)
+    assert out.count("\n") == 1 and got["verdict"] == "stiction"
+    assert not {"fd", "fs", "jump", "fd_op", "fs_op", "cycles_used"} & set(got)
+    size = got["size"]
+    assert size["unit"] == "% of span"
+    assert size["fd"] == pytest.approx(27.0, rel=0.05)
+    assert size["fs"] == pytest.approx(30.0, rel=0.05)
+    assert size["jump"] == pytest.approx(1.99 * (size["fs"] - size["fd"]), rel=1e-6)
+    assert size["cycles_used"] >= 2
+    assert main(["analyze", str(loop_csv), "--json"]) == 0
+    size = json.loads(capsys.readouterr().out)["size"]
+    assert size["unit"] == "OP units" and size["fd"] == pytest.approx(27.0, rel=0.05)
+    assert size["fs"] is None and size["jump"] is None  # fs needs kp
 
 
 def test_text_output(loop_csv: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["analyze", str(loop_csv)]) == 0
     out = capsys.readouterr().out
     assert "verdict: stiction" in out
-    assert "fd_op:" in out
-    assert "in OP units (give op_range for fractions of span)" in out
-    assert main(["analyze", str(loop_csv), "--op-range", "0", "100"]) == 0
-    assert "  fd: 0.269" in capsys.readouterr().out
+    assert re.search(r"^  fd: 2\d\.\d+ OP units$", out, re.M), out
+    assert main(["analyze", str(loop_csv), "--op-range", "0", "100", "--kp", "1"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^  fd: 2\d\.\d+ % of span$", out, re.M), out
+    assert re.search(r"^  jump: \d\.\d+ % of span$", out, re.M), out
+    assert re.search(r"^  cycles_used: \d+ \(limit cycles whose jumps were read\)$", out, re.M)
+
+
+def test_a_size_from_the_fitted_valve_has_its_jump_and_no_cycle_count() -> None:
+    """Issue 23 item 7: a valve sized by the fit to PV (no cycles read) showed
+    `cycles_used: 0` beside its fd and `jump: null` beside fd and fs."""
+    a = Assessment(Verdict.STICTION, "test", fd=0.20, fs=0.25, fd_op=20.0, fs_op=25.0)
+    view = cli.analyze.view(a)
+    assert view["size"] == {"unit": "% of span", "fd": 20.0, "fs": 25.0,
+                            "jump": pytest.approx(1.99 * 5.0)}
+    b = Assessment(Verdict.STICTION, "test", fd_op=2.0, fs_op=2.5)  # no op_range
+    assert cli.analyze.view(b)["size"] == {"unit": "OP units", "fd": 2.0, "fs": 2.5,
+                                           "jump": pytest.approx(1.99 * 0.5)}
+    assert cli.analyze.view(Assessment(Verdict.NO_STICTION, "test"))["size"] is None
 
 
 def test_utf8_byte_order_mark_is_read(tmp_path: Path, loop_csv: Path,
@@ -140,16 +167,15 @@ def test_missing_column(tmp_path: Path, capsys: pytest.CaptureFixture[str], col:
 def test_missing_time_column(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     p = _write(tmp_path, "op,pv\n1,2\n2,3\n")
     err = _error(capsys, ["analyze", str(p)])
-    assert "no column 't'" in err
-    assert "--ts" in err
+    assert "no time column 't' (columns: op, pv); give --time COL or --ts S" in err
 
 
-def test_non_numeric_cell(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    p = _write(tmp_path, "t,op,pv\n0,1,2\n1,abc,3\n")
+def test_a_column_without_numbers(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Text cells are gaps (a historian's 'I/O Timeout'), but a column of text only is the
+    wrong column."""
+    p = _write(tmp_path, "t,op,pv\n0,abc,2\n1,def,3\n")
     err = _error(capsys, ["analyze", str(p)])
-    assert "line 3" in err
-    assert "'op'" in err
-    assert "'abc'" in err
+    assert "column 'op' holds no numbers (e.g. 'abc'); is it the right column?" in err
 
 
 @pytest.mark.parametrize("rows", ["", "0,1,2\n"])
@@ -162,7 +188,7 @@ def test_fewer_than_two_samples(tmp_path: Path, capsys: pytest.CaptureFixture[st
 def test_time_going_backwards(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     p = _write(tmp_path, "t,op,pv\n" + "".join(f"{t},1,2\n" for t in (0, 2, 1)))
     err = _error(capsys, ["analyze", str(p)])
-    assert "time goes backwards at line 4 (2 -> 1)" in err
+    assert "time goes backwards at line 4 (2 -> 1 s in column 't'): sort the rows" in err
 
 
 def test_one_time_stamp_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -172,7 +198,8 @@ def test_one_time_stamp_only(tmp_path: Path, capsys: pytest.CaptureFixture[str])
 
 def test_missing_time(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     p = _write(tmp_path, "t,op,pv\n0,1,2\n,1,2\n")
-    assert "column 't' has a missing time at line 3" in _error(capsys, ["analyze", str(p)])
+    assert "line 3, column 't': no time; every row needs one" in _error(capsys,
+                                                                          ["analyze", str(p)])
 
 
 @pytest.mark.parametrize(
@@ -213,3 +240,71 @@ def test_reproduce_prints_paper_beside_ours(monkeypatch: pytest.MonkeyPatch,
     assert out.count("stiction") >= 2
     assert "0.270 (  0.0%)" in out  # the paper's Table 4 case 2 fd
     assert "mean abs error paper" in out
+
+
+# ------------------------------------------------------------ historian exports (issue 23)
+
+def _export(loop_csv: Path, path: Path, *, sep: str, stamp: str, comma: bool,
+            header: str = "Timestamp{s}FIC101.OP{s}FIC101.PV", texts: dict[int, str] | None = None,
+            encoding: str = "utf-8") -> Path:
+    """The sticky loop as a historian exports it: ``stamp`` a strftime form of the time
+    (from 2024-03-01 06:00:00, 1 s rows), ``texts`` PV cells replaced by text."""
+    data = np.loadtxt(loop_csv, delimiter=",", skiprows=1)
+    t0 = dt.datetime(2024, 3, 1, 6, 0, 0)
+    lines = [header.format(s=sep)]
+    for i, (t, op, pv) in enumerate(data):
+        cells = [f"{op:.4f}", f"{pv:.4f}"]
+        if comma:
+            cells = [c.replace(".", ",") for c in cells]
+        if texts and i in texts:
+            cells[1] = texts[i]
+        lines.append(sep.join([(t0 + dt.timedelta(seconds=float(t))).strftime(stamp), *cells]))
+    path.write_text("\r\n".join(lines) + "\r\n", encoding=encoding)
+    return path
+
+
+@pytest.mark.parametrize("form", [
+    (";", "%Y-%m-%d %H:%M:%S", True, "utf-8"),       # ISO, ';' and decimal commas
+    (";", "%Y-%m-%dT%H:%M:%SZ", False, "utf-8-sig"),  # ISO with Z, decimal points
+    ("\t", "%d.%m.%Y %H:%M:%S", True, "utf-16"),     # Excel "Unicode text", German dates
+    (",", "%m/%d/%Y %I:%M:%S %p", False, "utf-8"),   # US dates, 12-hour clock
+])
+def test_historian_exports_are_read_as_they_are(
+        tmp_path: Path, loop_csv: Path, capsys: pytest.CaptureFixture[str],
+        form: tuple[str, str, bool, str]) -> None:
+    """Issue 23 item 3: the delimiter sniffed, decimal commas, date-time stamps (the time
+    column found by its name), column names in any case, and text cells in PV as gaps,
+    counted in a warning; the verdict is the one of the plain file."""
+    sep, stamp, comma, encoding = form
+    texts = {200: "I/O Timeout", 201: "I/O Timeout", 900: "Shutdown"}
+    p = _export(loop_csv, tmp_path / "export.csv", sep=sep, stamp=stamp, comma=comma,
+                texts=texts, encoding=encoding)
+    assert main(["analyze", str(p), "--op", "fic101.op", "--pv", "FIC101.pv", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["verdict"] == "stiction", got["reason"]
+    assert "column 'FIC101.PV': 3 text cells treated as gaps: 'I/O Timeout' 2, " \
+        "'Shutdown' 1" in got["warnings"]
+    assert got["size"]["fd"] == pytest.approx(27.0, rel=0.05)
+
+
+def test_a_time_that_is_no_time_says_which_forms_are(tmp_path: Path, loop_csv: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    p = _write(tmp_path, "Time;OP;PV\n2024-03-01 06:00:00;1;2\nyesterday;1;2\n")
+    err = _error(capsys, ["analyze", str(p)])
+    assert "line 3, column 'Time': not a time: 'yesterday'; times may be seconds, or dates " \
+        "like 2024-03-01 06:00:00" in err
+    assert "or give --ts S" in err
+    p = _write(tmp_path, "Timestamp;FIC101.OP\n0;1\n1;2\n")
+    err = _error(capsys, ["analyze", str(p), "--op", "FIC101.OP"])
+    assert "no column 'pv' (columns: Timestamp, FIC101.OP); give --pv COL" in err
+
+
+def test_compressed_historian_values_are_refused(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """Recorded (compressed) values come at irregular times: not samples of one grid."""
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(1.0, 30.0, 400))
+    p = _write(tmp_path, "t,op,pv\n" + "".join(f"{x:.1f},1,2\n" for x in t))
+    err = _error(capsys, ["analyze", str(p)])
+    assert "time stamps irregular" in err
+    assert "export interpolated values at a fixed interval, or give --ts S" in err
