@@ -1,4 +1,4 @@
-"""`stiction`: offline tools (simulate, signature, analyze, reproduce).
+"""`stiction`: offline tools (simulate, signature, analyze, plant, reproduce).
 
 Exit status: 0 success, 2 bad arguments or unusable input (the message names the problem).
 """
@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from .._errors import ParameterError, StictionError
 from ._common import Handler, Subparsers, UsageError, param_option
 from .analyze import add_analyze
+from .plant import add_plant
 from .reproduce import add_reproduce
 from .simulate import add_signature, add_simulate
 
@@ -23,6 +24,7 @@ _COMMANDS: list[Callable[[Subparsers], None]] = [
     add_simulate,
     add_signature,
     add_analyze,
+    add_plant,
     add_reproduce,
 ]
 

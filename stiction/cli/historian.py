@@ -26,7 +26,7 @@ import numpy as np
 
 from ._common import UsageError
 
-__all__ = ["DATE_FORMATS", "TIME_COLUMNS", "Table", "column", "numbers", "on_grid",
+__all__ = ["DATE_FORMATS", "TIME_COLUMNS", "Table", "column", "grid", "numbers", "on_grid",
            "read_table", "times", "write_export"]
 
 DELIMITERS = (",", ";", "\t")
@@ -261,6 +261,13 @@ def _first_bad(cells: Sequence[str]) -> int:
 
 def on_grid(path: Path, name: str, t: np.ndarray, op: np.ndarray, pv: np.ndarray
             ) -> tuple[float, np.ndarray, np.ndarray, list[str]]:
+    """OP and PV on a regular grid of the median sample time (:func:`grid`)."""
+    ts, (grid_op, grid_pv), notes = grid(path, name, t, (op, pv))
+    return ts, grid_op, grid_pv, notes
+
+
+def grid(path: Path, name: str, t: np.ndarray, series: Sequence[np.ndarray]
+         ) -> tuple[float, list[np.ndarray], list[str]]:
     """Put the rows on a regular grid of the median sample time: repeated time stamps keep
     their last row, missing rows become gaps (NaN), as a historian export needs. Stamps
     more than a quarter sample off the grid in over 1 % of the rows are refused (the
@@ -288,11 +295,13 @@ def on_grid(path: Path, name: str, t: np.ndarray, op: np.ndarray, pv: np.ndarray
             f"{steps.max():g} s): the historian exported recorded (compressed) values; "
             "export interpolated values at a fixed interval, or give --ts S if the rows are "
             "equally spaced")
-    grid_op = np.full(int(k[-1]) + 1, np.nan)
-    grid_pv = grid_op.copy()
-    grid_op[k], grid_pv[k] = op, pv  # a repeated index keeps the last row
+    out = []
+    for x in series:
+        g = np.full(int(k[-1]) + 1, np.nan)
+        g[k] = x  # a repeated index keeps the last row
+        out.append(g)
     repeated = t.size - np.unique(k).size
-    missing = grid_op.size - np.unique(k).size
+    missing = int(k[-1]) + 1 - np.unique(k).size
     notes = []
     if float(off.max()) > 0.02 * ts:
         notes.append(f"time stamps jitter up to {float(off.max()):.3g} s around the {ts:g} s "
@@ -302,7 +311,7 @@ def on_grid(path: Path, name: str, t: np.ndarray, op: np.ndarray, pv: np.ndarray
                      "of each kept")
     if missing:
         notes.append(f"{missing} samples missing from the {ts:g} s time grid: treated as gaps")
-    return ts, grid_op, grid_pv, notes
+    return ts, out, notes
 
 
 EXPORT_START = dt.datetime(2024, 3, 1, 6, 0, 0, tzinfo=dt.UTC)

@@ -8,17 +8,11 @@ import functools
 
 import numpy as np
 import pytest
+from plant_fixtures import plant_records
 
 from stiction import Assessment, Evidence, ParameterError, Verdict, analyze
 from stiction.plant import PlantAssessment, analyze_plant
-from stiction.scenarios.plant import PlantRecord, simulate_plants
-from stiction.scenarios.plants import NAMED_PLANTS
-
-
-@functools.cache
-def _records() -> dict[str, PlantRecord]:
-    recs = simulate_plants(list(NAMED_PLANTS.values()), duration=7200.0, seed=3)
-    return {r.scenario.name: r for r in recs}
+from stiction.scenarios.plant import PlantRecord
 
 
 def _processes(rec: PlantRecord) -> dict[str, str]:
@@ -28,7 +22,7 @@ def _processes(rec: PlantRecord) -> dict[str, str]:
 
 @functools.cache
 def _view(name: str) -> tuple[PlantRecord, dict[str, Assessment], PlantAssessment]:
-    rec = _records()[name]
+    rec = plant_records()[name]
     proc = _processes(rec)
     before = {n: analyze(rec.op[n], rec.pv[n], ts=rec.ts, process=proc[n]) for n in rec.op}
     view = analyze_plant({n: (rec.op[n], rec.pv[n]) for n in rec.op}, ts=rec.ts,
