@@ -20,8 +20,11 @@ $(STAMP): pyproject.toml $(LOCK)
 	$(BIN)/pip install --quiet --constraint $(LOCK) -e '.[dev,plot]'
 	touch $(STAMP)
 
+# options of `stiction-gateway demo`, e.g. make demo DEMO_ARGS="--duration 60"
+DEMO_ARGS ?=
+
 demo: $(STAMP)
-	$(BIN)/stiction-gateway demo
+	$(BIN)/stiction-gateway demo $(DEMO_ARGS)
 
 test: $(STAMP)
 	$(BIN)/ruff check stiction gateway plcsim tests bench

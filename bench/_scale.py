@@ -22,8 +22,8 @@ Figures (see :class:`ScaleResult`):
   ticks that started during the round.
 
 The gateway config is built from the per-PLC configs that
-:func:`plcsim.gateway_config.gateway_config` writes, joined into one document whose result blocks
-:func:`plcsim.gateway_config.assign_result_blocks` numbers across all loops (3,276 per result unit
+:func:`plcsim.gateway_yaml.gateway_config` writes, joined into one document whose result blocks
+:func:`plcsim.gateway_yaml.assign_result_blocks` numbers across all loops (3,276 per result unit
 id: 10,000 loops use unit ids 1-4), and validated as a whole by
 :func:`gateway.config.parse_config`: the gateway runs a real config, result server included.
 """

@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from stiction import analyze
-from stiction._detect import stiction_index
-from stiction._oscillation import detect_oscillation
+from stiction.detectors.stiction_index import stiction_index
 from stiction.scenarios import simulate
+from stiction.signal.oscillation import detect_oscillation
 
 TARGET_MS = 5.0
 

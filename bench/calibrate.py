@@ -1,6 +1,6 @@
 """Calibrate how the tests' votes combine into one confidence, on real and simulated loops.
 
-Each window's evidence (:func:`stiction._evidence.gather`, the tests :func:`analyze` runs)
+Each window's evidence (:func:`stiction.diagnosis.evidence.gather`, the tests :func:`analyze` runs)
 gives every test a vote: +1 stiction, -1 not, 0 cannot tell. The combination is a weighted
 vote through a logistic link,
 
@@ -11,7 +11,7 @@ not can only lower it) and an L2 penalty that pulls each weight towards ``PRIOR`
 published test counts the same until the data show otherwise). Without that pull the
 weights shrink towards 0 wherever the data are noisy, and three tests agreeing with none
 against would stay short of a call. Two weights a test, a bias: small enough to read
-and to ship in the package (:mod:`stiction._weights`), too small to learn any one record.
+and to ship in the package (:mod:`stiction.diagnosis.weights`), too small to learn any one record.
 
 Data: the plant records (grouped by tag), the Tennessee Eastman runs (by run) and the
 realistic simulations (by loop), the real data sets weighing 0.4 each and the simulations
@@ -22,7 +22,7 @@ folds of groups, and leave-one-data-set-out (fit on two, score the third), which
 nearest we have to loops from elsewhere.
 
 ``python -m bench calibrate`` prints the held-out folds; ``python -m bench.calibrate
---write`` also rewrites ``stiction/_weights.py`` from the fit on all data.
+--write`` also rewrites ``stiction/diagnosis/weights.py`` from the fit on all data.
 """
 
 from __future__ import annotations
@@ -37,8 +37,8 @@ import numpy as np
 from scipy import optimize
 
 from bench.real_data import AMBIGUOUS, Case, plant_cases, sim_cases, tep_cases
-from stiction._combine import group_votes
-from stiction._evidence import TESTS, gather_for_calibration
+from stiction.diagnosis.combine import group_votes
+from stiction.diagnosis.evidence import TESTS, gather_for_calibration
 
 GROUP_NAMES = tuple(group_votes(TESTS, [0] * len(TESTS)))
 
@@ -47,7 +47,7 @@ PRIOR = 1.0
 DATASET_WEIGHT = {"plant": 0.4, "tep": 0.4, "sim": 0.2}
 """Real loops first: a rule that only holds on our own simulator is a defect, so the
 simulations weigh half as much as each real data set."""
-WEIGHTS_FILE = Path(__file__).resolve().parents[1] / "stiction" / "_weights.py"
+WEIGHTS_FILE = Path(__file__).resolve().parents[1] / "stiction" / "diagnosis" / "weights.py"
 FOLDS = 5
 
 
@@ -174,7 +174,7 @@ def main(argv: Sequence[str] = ()) -> None:
     t = load()
     print(f"== calibration: {len(t.cases)} windows, test groups {', '.join(GROUP_NAMES)} "
           f"({time.perf_counter() - t0:.0f} s to gather) ==")
-    from stiction._combine import STICTION_CONFIDENCE  # noqa: PLC0415
+    from stiction.diagnosis.combine import STICTION_CONFIDENCE  # noqa: PLC0415
     cross_validate(t, STICTION_CONFIDENCE)
     beta = fit(t)
     print(f"  fit on all data: bias {beta[0]:+.2f}; per test (+vote weight / -vote weight):")

@@ -9,9 +9,9 @@ Data sets (read each README's caveats in ../shared/data):
 - **TEP**: ``tep-sticky-valves``, 58 Tennessee Eastman runs. Scored per run, with the causes
   apart: normal operation, external disturbances, the loop a sticky valve disturbs
   (propagated) and the sticky valves (IDV 14 clear, IDV 15 barely visible).
-- **simulations**: :func:`stiction.realistic.realistic_loops`, each cause over several seeds.
-  The ``ramp-load`` cause (a triangle or sawtooth load, which OP and PV cannot tell from a
-  sticky valve) is shown on its own row and left out of the totals.
+- **simulations**: :func:`stiction.scenarios.realistic.realistic_loops`, each cause over
+  several seeds. The ``ramp-load`` cause (a triangle or sawtooth load, which OP and PV
+  cannot tell from a sticky valve) is shown on its own row and left out of the totals.
 
 Every record is analysed as a new user would: ``analyze(op, pv, ts=ts)`` with nothing else
 known (self-regulating, no op_range, no kp); the simulations once more with the process type
@@ -43,10 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
-from stiction import Assessment, Verdict, analyze, realistic
-from stiction._detect import STICTION_SI, stiction_index
-from stiction._evidence import TESTS
-from stiction._oscillation import MIN_PERIOD, detect_oscillation
+from stiction import Assessment, Verdict, analyze
+from stiction.detectors.stiction_index import STICTION_SI, stiction_index
+from stiction.diagnosis.evidence import TESTS
+from stiction.scenarios import realistic
+from stiction.signal.oscillation import MIN_PERIOD, detect_oscillation
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 PLANT = SHARED / "plant-stictiongpt"

@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 
+from stiction.models.simulate import LoopBank, LoopParams
+from stiction.models.valves import HeValve
 from stiction.scenarios import scenario
-from stiction.simulate import LoopBank, LoopParams
-from stiction.valves import HeValve
 
 
 def _bank(n: int) -> LoopBank:

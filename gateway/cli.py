@@ -1,5 +1,6 @@
-"""`stiction-gateway` command line: run, check-config, plc-sim, demo, opcua-cert, and the
-onboarding commands import-tags, probe, browse, result-map (:mod:`.runtime.onboarding`).
+"""`stiction-gateway` command line: run, check-config, opcua-cert, the onboarding commands
+import-tags, probe, browse, result-map (:mod:`.runtime.onboarding`), and the commands other
+packages register (:data:`COMMANDS`: the simulator's plc-sim and demo).
 
 Exit status: 0 ok, 1 runtime failure (e.g. a port in use), 2 bad usage or bad config (the
 problems are printed on stderr, one per line, each naming the file, section and key).
@@ -8,19 +9,23 @@ problems are printed on stderr, one per line, each naming the file, section and 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import logging
 import sys
-from pathlib import Path
+from importlib.metadata import entry_points
 
 from .config import load_config
 from .config.addresses import describe_assigned
 from .errors import ConfigError, GatewayError
 from .runtime import onboarding
 from .runtime.logs import install_rate_limit
-from .runtime.service import install_stop_signals, run
+from .runtime.service import run
 
-__all__ = ["build_parser", "main"]
+__all__ = ["COMMANDS", "build_parser", "main"]
+
+COMMANDS = "stiction_gateway.commands"
+"""Entry-point group of commands other distributions add (the simulator's ``plc-sim`` and
+``demo``, pyproject.toml): a function that adds its subparser, setting ``plugin`` to the
+handler. The gateway never imports them by name."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -37,17 +42,12 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("file", metavar="FILE")
     check.add_argument("--bind-check", action="store_true",
                        help="also try to bind metrics.listen and modbus_server.listen")
-    sim = sub.add_parser("plc-sim", help="simulated PLC serving OP/PV over Modbus TCP")
-    sim.add_argument("--config", required=True, metavar="FILE", help="plc-sim YAML config")
-    sim.add_argument("--write-gateway-config", metavar="FILE",
-                     help="write the matching gateway config to FILE and exit")
-    demo = sub.add_parser("demo", help="simulated PLC + gateway with a live verdict table")
-    demo.add_argument("--duration", type=float, default=None, metavar="S",
-                      help="stop after S wall seconds (default: run until Ctrl-C)")
     sub.add_parser("opcua-cert", add_help=False,
                    help="create an OPC UA client (or --server) certificate and key "
                         "(see `stiction-gateway opcua-cert --help`, docs/opcua.md)")
     onboarding.add_commands(sub)
+    for entry in sorted(entry_points(group=COMMANDS), key=lambda e: e.name):
+        entry.load()(sub)  # e.g. plcsim's plc-sim and demo: they set ``plugin``
     return parser
 
 
@@ -108,31 +108,8 @@ def _dispatch(args: argparse.Namespace) -> int:
         config = load_config(args.config)
         install_rate_limit()  # no flood of events floods the journal (runtime/logs.py)
         return run(config, args.config)
-    if args.command == "plc-sim":
-        import plcsim  # the simulator ships beside the daemon, loaded on demand
-
-        sim_cfg = plcsim.load_sim_config(args.config)
-        if args.write_gateway_config:
-            text = plcsim.dump_yaml(plcsim.gateway_config(sim_cfg))
-            Path(args.write_gateway_config).write_text(
-                "# Gateway config for the simulated PLC of " + args.config + "\n" + text,
-                encoding="utf-8")
-            print(f"wrote {args.write_gateway_config}")
-            return 0
-
-        async def serve_sim() -> None:
-            stop = asyncio.Event()
-            install_stop_signals(stop)
-            await plcsim.serve(sim_cfg, stop)
-
-        asyncio.run(serve_sim())
-        return 0
-    if args.command == "demo":
-        from plcsim.demo import run_demo
-
-        logging.getLogger().setLevel(logging.WARNING)  # the table is the output
-        asyncio.run(run_demo(args.duration))
-        return 0
+    if getattr(args, "plugin", None) is not None:
+        return int(args.plugin(args))
     raise AssertionError(args.command)
 
 

@@ -22,6 +22,7 @@ import contextlib
 import math
 import socket
 import sys
+import textwrap
 import time
 from typing import TextIO
 
@@ -30,7 +31,7 @@ from gateway.runtime.gateway import Gateway
 from gateway.runtime.service import install_stop_signals
 
 from .config import parse_sim_config
-from .gateway_config import gateway_config
+from .gateway_yaml import gateway_config
 from .sim import PlcSim
 
 __all__ = ["DEMO_LOOPS", "demo_configs", "run_demo"]
@@ -86,8 +87,10 @@ def _fmt(x: float | None, scale: float = 1.0, digits: int = 2) -> str:
     return f"{x * scale:.{digits}f}"
 
 
-def _short(text: str, width: int = 60) -> str:
-    return text if len(text) <= width else text[: width - 3] + "..."
+def _wrapped(text: str, width: int = 100) -> list[str]:
+    """The whole reason, on indented lines of at most ``width`` characters: never cut."""
+    return textwrap.wrap(" ".join(text.split()), width, initial_indent="         ",
+                         subsequent_indent="         ", break_on_hyphens=False)
 
 
 def render_table(gw: Gateway, started: float, out: TextIO) -> None:
@@ -95,17 +98,21 @@ def render_table(gw: Gateway, started: float, out: TextIO) -> None:
     proc = (time.monotonic() - started) * gw.config.gateway.time_scale
     lines = [f"t = {time.monotonic() - started:5.1f} s wall, {proc:7.0f} s process",
              f"{'loop':8} {'what':22} {'verdict':16} {'SI':>6} {'fd %':>6} {'fs %':>6} "
-             f"{'period s':>8} {'fill':>5} {'#':>4}  reason"]
+             f"{'period s':>8} {'fill':>5} {'#':>4}  (reason below)"]
     what = {n: w for n, _, _, w in DEMO_LOOPS}
     for i, name in enumerate(st.loops):
         res = st.results[i]
         a = res.assessment if res else None
+        size = a.sizes() if a else None  # % of span: the gateway always knows op_range
         lines.append(
             f"{name:8} {what.get(name, ''):22} {st.verdict_name(i):16} "
-            f"{_fmt(a.stiction_index if a else None):>6} {_fmt(a.fd if a else None, 100, 1):>6} "
-            f"{_fmt(a.fs if a else None, 100, 1):>6} {_fmt(a.period_s if a else None, 1, 0):>8} "
-            f"{_fmt(res.window_fill if res else None):>5} {res.seq if res else 0:>4}  "
-            f"{_short(a.reason) if a else ''}")
+            f"{_fmt(a.stiction_index if a else None):>6} "
+            f"{_fmt(size.fd if size else None, 1, 1):>6} "
+            f"{_fmt(size.fs if size else None, 1, 1):>6} "
+            f"{_fmt(a.period_s if a else None, 1, 0):>8} "
+            f"{_fmt(res.window_fill if res else None):>5} {res.seq if res else 0:>4}")
+        if a is not None:
+            lines.extend(_wrapped(a.reason))
     if out.isatty():
         out.write("\x1b[H\x1b[J")
     out.write("\n".join(lines) + "\n\n")

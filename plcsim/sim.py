@@ -4,7 +4,7 @@ closed-loop simulator, sample by sample, in real time or ``time_scale`` times fa
 The config is :mod:`plcsim.config` (docs/plc-sim.md). Each loop takes 4 registers from its
 ``address``: OP float32 (% of valve span) then PV float32 (process units), served alike as
 holding and input registers (read-only). Loops are grouped by valve class into
-:class:`stiction.simulate.LoopBank` s whose parameters are arrays, so a step of 10,000 loops
+:class:`stiction.models.simulate.LoopBank` s whose parameters are arrays, so a step of 10,000 loops
 costs a few dozen numpy operations. Each loop gets its scenario's setpoint step (``sp_step``
 at ``sp_step_time``) so sticky loops start their limit cycle.
 """
@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from gateway.wire.codec import encode_values
 from gateway.wire.registers import RegisterServer
-from stiction.simulate import LoopBank, LoopParams
+from stiction.models.simulate import LoopBank, LoopParams
 
 from .config import REGISTERS_PER_LOOP, SimConfig
 from .opcua import OpcUaPlcServer

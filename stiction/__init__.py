@@ -6,10 +6,10 @@ Method: He, Pottmann & Qin (2007) for detection, He & Wang (2014) for quantifica
 
 from __future__ import annotations
 
-from ._analyze import analyze
-from ._assessment import Assessment, Evidence, Verdict
+from ._assessment import Assessment, Evidence, Sizes, Verdict
 from ._errors import ParameterError, StictionError
-from .valves import (
+from .diagnosis.analyze import analyze
+from .models.valves import (
     ChoudhuryValve,
     HeValve,
     KanoValve,
@@ -28,6 +28,7 @@ __all__ = [
     "ParameterError",
     "PhysicalParams",
     "PhysicalValve",
+    "Sizes",
     "StictionError",
     "ValveModel",
     "Verdict",

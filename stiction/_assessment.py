@@ -11,11 +11,22 @@ import dataclasses
 import enum
 from typing import Any
 
-__all__ = ["Assessment", "Evidence", "Verdict"]
+__all__ = ["DEFAULT_K", "Assessment", "Evidence", "Sizes", "Verdict"]
+
+DEFAULT_K = 1.99
+"""He's overshoot factor K that :func:`stiction.analyze` assumes unless told (Table 1 valve)."""
 
 
 class Verdict(enum.StrEnum):
-    """What the analysis concluded about one window of one loop."""
+    """What the analysis concluded about one window of one loop.
+
+    ``WARMING_UP`` is never returned by :func:`stiction.analyze`: the gateway gives it to a
+    window that is still filling where the analysis found no oscillation (a slower one may
+    not have enough cycles in it yet), instead of a ``NOT_OSCILLATING`` that sounds final.
+    ``PROPAGATED`` is never returned by it either: the plant view (:mod:`stiction.plant`)
+    gives it to a loop that carries a cycle it shares with others, whose source is another
+    loop or outside the loops analysed.
+    """
 
     STICTION = "stiction"
     NO_STICTION = "no_stiction"
@@ -23,6 +34,8 @@ class Verdict(enum.StrEnum):
     NOT_OSCILLATING = "not_oscillating"
     BAD_DATA = "bad_data"
     VALVE_NOT_RESPONDING = "valve_not_responding"
+    WARMING_UP = "warming_up"
+    PROPAGATED = "propagated"
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -44,13 +57,49 @@ class Evidence:
         return {"test": self.test, "value": self.value, "vote": self.vote, "note": self.note}
 
 
+SPAN = "% of span"
+OP_UNITS = "OP units"
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class Sizes:
+    """A sticky valve's size in one unit, as every output shows it (the CLI, its JSON, the
+    Modbus registers; the Prometheus series hold the same percentages / 100, as ``_ratio``).
+
+    ``unit`` is ``"% of span"`` when the OP range was known, else ``"OP units"``; ``fd``,
+    ``fs`` (None without kp) and ``jump`` (the valve's slip J = K (fs - fd), He & Wang 2014
+    eq 7; None without fs) are in it. ``cycles_used`` is the number of limit cycles whose
+    jumps were read, None when the size came from another method (the valve fitted to PV,
+    the OP-PV ellipse: the reason names it).
+    """
+
+    unit: str
+    fd: float
+    fs: float | None
+    jump: float | None
+    cycles_used: int | None
+
+    @property
+    def of_span(self) -> bool:
+        """In % of the valve span (else OP units)."""
+        return self.unit == SPAN
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"unit": self.unit, "fd": self.fd, "fs": self.fs,
+                               "jump": self.jump}
+        if self.cycles_used is not None:
+            out["cycles_used"] = self.cycles_used
+        return out
+
+
 @dataclasses.dataclass(frozen=True, slots=True)
 class Assessment:
     """The verdict on one window of OP/PV, and the stiction size when it applies.
 
     Valve quantities (``fd``, ``fs``, ``jump``) are fractions of the valve span, as in
     He & Wang (2014) Table 2; ``fd_op`` and ``fs_op`` are the same in OP units (for
-    ``op_range=(0, 100)``, percent). Fields that were not estimated are ``None``.
+    ``op_range=(0, 100)``, percent). Fields that were not estimated are ``None``. What
+    the outputs show is :meth:`sizes`: one unit, labelled, the jump wherever fd and fs are.
     """
 
     verdict: Verdict
@@ -68,6 +117,24 @@ class Assessment:
     warnings: tuple[str, ...] = ()
     confidence: float | None = None
     evidence: tuple[Evidence, ...] = ()
+
+    def sizes(self, k: float = DEFAULT_K) -> Sizes | None:
+        """The size in one unit (:class:`Sizes`): percent of span when the OP range was
+        given, OP units otherwise; None when the valve was not sized. A jump the sizing did
+        not give itself (the valve fitted to PV gives fd and fs) is K (fs - fd), the
+        relation the limit cycle's sizing holds to; ``k`` is the K the analysis used."""
+        if self.fd is not None:
+            unit, scale, fd, fs = SPAN, 100.0, self.fd, self.fs
+        elif self.fd_op is not None:
+            unit, scale, fd, fs = OP_UNITS, 1.0, self.fd_op, self.fs_op
+        else:
+            return None
+        jump = self.jump if unit == SPAN else None
+        if jump is None and fs is not None:
+            jump = k * (fs - fd)
+        return Sizes(unit, fd * scale, None if fs is None else fs * scale,
+                     None if jump is None else jump * scale,
+                     self.cycles_used if self.cycles_used > 0 else None)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping with exactly the field names of the dataclass."""

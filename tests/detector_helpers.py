@@ -10,9 +10,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from stiction._oscillation import detect_oscillation
+from stiction.models.simulate import LoopBank
 from stiction.scenarios import scenario
-from stiction.simulate import LoopBank
+from stiction.signal.oscillation import detect_oscillation
 
 SKIP = 600  # samples dropped: the set-point step that starts every scenario, and its ringing
 

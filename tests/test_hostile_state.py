@@ -10,6 +10,7 @@ watched. Each test failed on main the day the issue was filed (cc81e67).
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
 import shutil
 import time
@@ -164,3 +165,18 @@ def test_failed_state_writes_are_counted_for_monitoring(tmp_path: Path) -> None:
 
     asyncio.run(asyncio.wait_for(go(), 50))
     assert out["last"][0] == out["last"][1] > 0
+
+
+def test_every_assessment_the_analysis_can_write_passes_the_checks() -> None:
+    """The checks follow stiction.Assessment: an assessment with every field set (the
+    sample sticky one, and each verdict) passes, so a good file is never set aside."""
+    from result_fixtures import STICKY  # noqa: PLC0415
+
+    from gateway.outputs.statefile.validate import check_assessment  # noqa: PLC0415
+    from stiction import Assessment, Evidence, Verdict  # noqa: PLC0415
+
+    full = dataclasses.replace(STICKY, warnings=("short window",), multi_jump=True,
+                               evidence=(Evidence("si_op", 0.9, 1, "triangles"),))
+    check_assessment(full.to_dict(), "a")
+    for verdict in Verdict:
+        check_assessment(Assessment(verdict, "why").to_dict(), "a")

@@ -69,6 +69,7 @@ class TagRow:
     line: int
     cells: dict[str, str]
     problems: int = 0
+    whole: bool = True  # as many cells as the header has columns (else not read further)
 
 
 @dataclasses.dataclass
@@ -125,14 +126,28 @@ def read_tag_text(text: str, source: str) -> TagTable:
         cells = next(csv.reader([line], delimiter=delimiter))
         row = TagRow(n, {col: cell.strip() for col, cell in zip(header, cells, strict=False)
                          if col in COLUMNS and cell.strip()})
-        if len(cells) > len(header):
-            table.file_problems.append(f"{source}: line {n}: {len(cells)} cells, the header "
-                                       f"has {len(header)} columns")
+        if len(cells) != len(header):  # its cells would land in the wrong columns
+            table.file_problems.append(_count_problem(
+                source, n, row, cells=len(cells), columns=len(header), delimiter=delimiter))
             row.problems += 1
+            row.whole = False
         table.rows.append(row)
     if not table.rows:
         table.file_problems.append(f"{source}: no rows below the header (line {head_line})")
     return table
+
+
+def _count_problem(source: str, n: int, row: TagRow, *, cells: int, columns: int,
+                   delimiter: str) -> str:
+    """A row with a cell too few or too many: said as such, not by the symptoms of its
+    cells read under the wrong columns."""
+    name = row.cells.get("name")
+    what = "a cell is missing" if cells < columns else "there is a cell too many"
+    shown = {"\t": "a tab"}.get(delimiter, repr(delimiter))
+    return (f"{source}: line {n} has {cells} cells, the header has {columns}" +
+            (f" (loop {name})" if name else "") + f": {what}; make the row "
+            f"one cell per column (leave a cell empty for a default; a cell holding "
+            f"{shown} must be in quotes)")
 
 
 def _scalar(text: str) -> Any:
@@ -231,6 +246,8 @@ def tag_entries(problems: Problems, tables: list[TagTable],
     for table in tables:
         problems.lines.extend(table.file_problems)
         for i, row in enumerate(table.rows):
+            if not row.whole:  # said by its file problem; its cells are not where they belong
+                continue
             name = row.cells.get("name")
             where = f"line {row.line}" + (f": loop {name}" if name else "")
             mapping = loop_mapping(row, protocols.get(row.cells.get("device", "")))

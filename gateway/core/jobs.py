@@ -4,7 +4,8 @@
 pickle per batch, not per loop); :func:`analyze_batch` is the worker's entry point: per job
 the window fill, the trailing usable segment (short gaps interpolated), a ``bad_data``
 verdict when the device delivered implausible values, else ``stiction.analyze`` (or the
-function named by ``path``, for tests).
+function named by ``path``, for tests); its ``not_oscillating`` on a segment shorter than
+the window is ``warming_up`` (:func:`warming_up`).
 """
 
 from __future__ import annotations
@@ -22,12 +23,18 @@ from stiction import Assessment, Verdict
 from .points import Quality
 from .windows import LoopGroup, analysis_segment
 
-__all__ = ["BAD_TAIL", "DEFAULT_ANALYZE", "MIN_SEGMENT", "LoopJob", "analyze_batch",
-           "bad_values_reason", "batches"]
+__all__ = ["BAD_TAIL", "DEFAULT_ANALYZE", "FULL_WINDOW", "MIN_SEGMENT", "LoopJob",
+           "analyze_batch", "bad_values_reason", "batches", "warming_up"]
 
 DEFAULT_ANALYZE = "stiction:analyze"
 BAD_TAIL = 3  # trailing BAD samples beyond which the current data is called unusable
 MIN_SEGMENT = 32  # stiction.analyze's minimum window
+FULL_WINDOW = 0.95
+"""Share of the window the analysed segment must span before ``not_oscillating`` is final
+(a few samples short of the whole: the latest poll may have failed)."""
+CYCLES_TO_SEE = 2.6
+"""Cycles of an oscillation a window must hold before the analysis can see it: its ACF test
+needs four zero crossings within 2/3 of the window (7/4 periods <= 2/3 of it)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,6 +103,8 @@ def analyze_batch(path: str, jobs: Sequence[LoopJob]
                             process=job.process, op_range=job.op_range)
             except Exception as exc:  # a bug in one window must not stop the round
                 a = Assessment(Verdict.BAD_DATA, f"analysis failed: {type(exc).__name__}: {exc}")
+            if a.verdict == Verdict.NOT_OSCILLATING and len(op) < FULL_WINDOW * job.size:
+                a = warming_up(a, len(op), job.size, job.ts, fill)
         out.append((job.index, a, fill, len(op), time.perf_counter() - t0))
     return out
 
@@ -116,3 +125,30 @@ def bad_values_reason(quality: NDArray[np.uint8], usable: int) -> str | None:
         return (f"only {usable} usable samples since the last run of bad values "
                 f"({n_bad} bad samples in the window: {what})")
     return None
+
+
+def warming_up(a: Assessment, samples: int, size: int, ts: float, fill: float) -> Assessment:
+    """``a`` (``not_oscillating`` on ``samples`` of a window of ``size``) as ``warming_up``:
+    the segment is too short to hold enough cycles of a slow oscillation, so the verdict is
+    not final. The reason says how full the window is and what it waits for (under the
+    journal's 200 characters); the analysis's own reason stays in the evidence's notes."""
+    reason = (f"warming up: window fill {fill:.0%}, {_duration(samples * ts)} of "
+              f"{_duration(size * ts)} analysed; no oscillation faster than "
+              f"{_duration(samples * ts / CYCLES_TO_SEE)} so far; slower ones need 3 cycles: "
+              f"waiting up to {_duration((size - samples) * ts)} for the full "
+              f"window, which sees periods up to {_duration(size * ts / CYCLES_TO_SEE)}")
+    return dataclasses.replace(a, verdict=Verdict.WARMING_UP, reason=reason)
+
+
+def _duration(seconds: float) -> str:
+    """``0.4 s``, ``45 s``, ``4 min``, ``1 h 50 min``, ``2 h``."""
+    if seconds < 10:
+        return f"{seconds:.2g} s"
+    s = round(seconds)
+    if s < 120:
+        return f"{s} s"
+    minutes = round(s / 60)
+    hours, rest = divmod(minutes, 60)
+    if hours == 0:
+        return f"{minutes} min"
+    return f"{hours} h" + (f" {rest} min" if rest else "")

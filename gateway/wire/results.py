@@ -53,8 +53,10 @@ VERDICT_CODES: dict[str, int] = {
     Verdict.BAD_DATA: 5,
     "stale": 6,
     Verdict.VALVE_NOT_RESPONDING: 7,
+    Verdict.WARMING_UP: 8,
 }
-"""Verdict codes of register +0 ("none": no assessment yet; "stale": no fresh samples)."""
+"""Verdict codes of register +0 ("none": no assessment yet; "stale": no fresh samples;
+"warming_up": the window is still filling and no oscillation is seen yet)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,7 +77,7 @@ class Field:
         return TYPES[self.type][0]
 
 
-_PERCENT = "% of valve span"
+_PERCENT = "% of valve span"  # the one unit of sizes (stiction.Sizes); metrics: / 100
 _CODES = ", ".join(f"{code} {name.replace('_', ' ') if name != 'none' else 'no result yet'}"
                    for name, code in VERDICT_CODES.items())
 
@@ -90,7 +92,9 @@ LAYOUT: tuple[Field, ...] = (
     Field("fs_percent", 6, "float32", _PERCENT,
           "fs, static friction; NaN when the loop has no kp in the config"),
     Field("period_s", 8, "float32", "s", "oscillation period"),
-    Field("jump_percent", 10, "float32", _PERCENT, "valve jump J = fs - fd"),
+    Field("jump_percent", 10, "float32", _PERCENT,
+          "valve jump J = K (fs - fd), K = 1.99: how far the valve slips when it breaks "
+          "free; NaN without fs"),
     Field("timestamp", 12, "uint32", "Unix s (UTC)", "time of the assessment"),
     Field("window_fill", 14, "float32", "0-1",
           "window fill: fraction of the loop's window holding good samples"),
@@ -124,8 +128,8 @@ def verdict_code(result: LoopResultLike | None, stale: bool = False) -> int:
     return VERDICT_CODES[result.assessment.verdict]
 
 
-def _num(x: float | None, factor: float = 1.0) -> float:
-    return math.nan if x is None else float(x) * factor
+def _num(x: float | None) -> float:
+    return math.nan if x is None else float(x)
 
 
 def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
@@ -135,10 +139,15 @@ def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
     if result is None:
         return {"code": code, **{f.name: math.nan for f in LAYOUT if f.type == "float32"}}
     a = result.assessment
+    size = a.sizes()
+    if size is not None and not size.of_span:  # the gateway always knows op_range
+        size = None
     return {"code": code, "seq": result.seq % 65536,
-            "stiction_index": _num(a.stiction_index), "fd_percent": _num(a.fd, 100.0),
-            "fs_percent": _num(a.fs, 100.0), "period_s": _num(a.period_s),
-            "jump_percent": _num(a.jump, 100.0), "timestamp": max(0, int(result.t)),
+            "stiction_index": _num(a.stiction_index),
+            "fd_percent": _num(size.fd if size else None),
+            "fs_percent": _num(size.fs if size else None),
+            "period_s": _num(a.period_s), "jump_percent": _num(size.jump if size else None),
+            "timestamp": max(0, int(result.t)),
             "window_fill": result.window_fill, "confidence": _num(a.confidence)}
 
 

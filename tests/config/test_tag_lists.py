@@ -188,3 +188,28 @@ def test_a_bad_base_config_writes_nothing(tmp_path: Path) -> None:
     result = import_tags(csv, base)
     assert result.text is None
     assert result.problems == [f"{base}: device plc1: missing required key 'host'"]
+
+
+def test_a_row_with_a_cell_too_few_or_too_many_is_refused_as_such(tmp_path: Path) -> None:
+    """Issue 23 item 6: a row whose cells do not match the header is named by its count,
+    not by the symptoms of cells read under the wrong columns (a type 'self-regulating', a
+    process 1.0), and none of its cells is taken (delay_s no longer falls back silently)."""
+    csv = write(tmp_path, "tags.csv",
+                "name,device,op,pv,type,process,kp,delay_s\n"
+                "FIC101,plc1,0,2,float32,self-regulating,1.0,4\n"
+                "LIC201,plc1,4,6,integrating,0.2,3\n"          # 'type' left out: 7 cells
+                "TIC301,plc1,8,10,float32,,1.0,6,\n"           # one cell too many: 9
+                "TIC302,plc1,12,14,float32,,1.0,6\n")
+    result = import_tags(csv, write(tmp_path, "base.yaml", BASE))
+    assert result.problems == [
+        f"{csv}: line 3 has 7 cells, the header has 8 (loop LIC201): a cell is missing; make "
+        "the row one cell per column (leave a cell empty for a default; a cell holding ',' "
+        "must be in quotes)",
+        f"{csv}: line 4 has 9 cells, the header has 8 (loop TIC301): there is a cell too "
+        "many; make the row one cell per column (leave a cell empty for a default; a cell "
+        "holding ',' must be in quotes)"]
+    assert result.bad_lines == [3, 4] and result.loops == 2
+    with pytest.raises(ConfigError) as err:
+        load_config(write(tmp_path, "gw.yaml", BASE + "loops_csv: tags.csv\n"))
+    assert err.value.problems == [p.replace(str(csv), str(tmp_path / "tags.csv"))
+                                  for p in result.problems]

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+from detector_fixtures import cached_sim
 
 from gateway.core.jobs import LoopJob, analyze_batch, bad_values_reason, batches
 from gateway.core.points import Quality
 from gateway.core.windows import LoopGroup, WindowBank
-from stiction import Verdict
+from stiction import Verdict, analyze
 
 G, B, N = Quality.GOOD, Quality.BAD, Quality.NO_COMM
 FAKE = "gateway_fake_analyze:analyze"
@@ -69,3 +70,40 @@ def test_batches_copy_windows_batch_by_batch() -> None:
     j = got[1][1]
     assert j.op.tolist() == [3.0, 4.0, 5.0] and j.size == 16 and j.ts == 0.5
     assert (j.kp, j.delay, j.process) == (1.5, 2.0, "integrating")
+
+
+def _sim(name: str, seconds: int) -> tuple[np.ndarray, np.ndarray]:
+    r = cached_sim(name, 0.02, 3)
+    return r.op[:seconds].astype(np.float32), r.pv[:seconds].astype(np.float32)
+
+
+def _real_job(op: np.ndarray, pv: np.ndarray, size: int, process: str) -> LoopJob:
+    return LoopJob(0, op, pv, np.full(len(op), G, np.uint8), size=size, ts=1.0, kp=None,
+                   delay=0.0, process=process, op_range=(0.0, 100.0))
+
+
+def test_a_window_still_filling_is_warming_up_never_not_oscillating() -> None:
+    """Issue 23 item 4: a sticky level valve (table5-case2) 10 minutes into a 2-hour window
+    shows no oscillation yet (its cycle needs more of the window); the verdict says the
+    window is warming up, how full it is and what it waits for, not `not_oscillating`."""
+    op, pv = _sim("table5-case2", 600)
+    assert analyze(op, pv, ts=1.0, process="integrating").verdict == Verdict.NOT_OSCILLATING
+    (_, a, _, n, _), = analyze_batch("stiction:analyze",
+                                        [_real_job(op, pv, 7200, "integrating")])
+    assert (a.verdict, n) == (Verdict.WARMING_UP, 600)
+    assert a.reason == ("warming up: window fill 8%, 10 min of 2 h analysed; no oscillation "
+                        "faster than 4 min so far; slower ones need 3 cycles: waiting "
+                        "up to 1 h 50 min for the full window, which sees periods up to 46 min")
+    assert len(a.reason) <= 200  # the journal's verdict-change line keeps it whole
+    # the full window of the same valve: stiction, as before
+    op, pv = _sim("table5-case2", 4000)
+    (_, a, _, _, _), = analyze_batch("stiction:analyze",
+                                     [_real_job(op, pv, 4000, "integrating")])
+    assert a.verdict == Verdict.STICTION
+
+
+def test_a_full_window_without_oscillation_is_not_oscillating() -> None:
+    op, pv = _sim("healthy", 3600)
+    (_, a, _, _, _), = analyze_batch("stiction:analyze",
+                                     [_real_job(op, pv, 3600, "self-regulating")])
+    assert a.verdict == Verdict.NOT_OSCILLATING

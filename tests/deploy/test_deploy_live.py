@@ -328,6 +328,8 @@ VERDICT_CODES = {
     "stiction": 4,
     "bad_data": 5,
     "stale": 6,
+    "valve_not_responding": 7,
+    "warming_up": 8,
 }
 
 

@@ -258,7 +258,8 @@ def test_the_fleet_panels_show_every_site(fleet: Fleet) -> None:
     assert verdicts[("plant-a", "stiction")] == 2.0
     assert verdicts[("plant-b", "stiction")] == verdicts[("plant-c", "stiction")] == 1.0
     assert verdicts[("plant-c", "stiction")] + verdicts.get(("plant-c", "no_stiction"), 0) \
-        + verdicts.get(("plant-c", "not_oscillating"), 0) <= 3.0
+        + verdicts.get(("plant-c", "not_oscillating"), 0) \
+        + verdicts.get(("plant-c", "warming_up"), 0) <= 3.0
     assert rows("Gateway health per site", "A", "site") == rows(
         "Gateway health per site", "B", "site") == {
         ("plant-a",): 1.0, ("plant-b",): 1.0, ("plant-c",): 1.0}

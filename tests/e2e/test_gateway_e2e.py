@@ -31,9 +31,10 @@ EXPECTED = {
     "FIC101": {"stiction"},
     "LIC201": {"stiction"},
     # a healthy loop with measurement noise: no oscillation (the analysis may also call
-    # the noise "too short to see", bad_data) - never stiction
-    "TIC301": {"not_oscillating", "bad_data"},
-    "FIC401": {"no_stiction", "undetermined", "not_oscillating"},
+    # the noise "too short to see", bad_data; warming_up while its window fills) - never
+    # stiction
+    "TIC301": {"not_oscillating", "warming_up", "bad_data"},
+    "FIC401": {"no_stiction", "undetermined", "not_oscillating", "warming_up"},
     "PIC501": {"no_stiction", "undetermined"},
 }
 
@@ -93,7 +94,7 @@ def test_plc_sim_to_gateway_to_modbus_and_metrics() -> None:
         # the two outputs agree
         assert metric("stiction_loop_verdict", loop=name, verdict=verdict) == 1.0
         for other in ("stiction", "no_stiction", "undetermined", "not_oscillating",
-                      "bad_data", "none", "stale"):
+                      "warming_up", "bad_data", "none", "stale"):
             if other != verdict:
                 assert metric("stiction_loop_verdict", loop=name, verdict=other) == 0.0
         assert metric("stiction_loop_last_assessment_timestamp_seconds", loop=name) == \

@@ -98,6 +98,13 @@ def test_every_command_of_the_onboarding_page_runs_in_order(tmp_path: Path) -> N
             assert proc.returncode == 0, f"{what}: exit {proc.returncode}\n{log.read_text()}"
             assert "Traceback" not in log.read_text(), log.read_text()
     assert (tmp_path / "result-map.csv").read_text().count("\n") == 1 + 3 * 10
+    # the historian part (issue 23): an export with ';', decimal commas, ISO times and a
+    # text cell, analysed as it is
+    export = (tmp_path / "FIC101-export.csv").read_text()
+    assert export.startswith("Timestamp;FIC101.OP;FIC101.PV")
+    assert re.search(r"^2024-03-01 06:00:00;\d+,\d+;\d+,\d+\r?$", export, re.M)
+    assert "I/O Timeout" in export
+    assert any(c.startswith("stiction analyze FIC101-export.csv") for c in commands)
     assert (tmp_path / "state").is_dir()  # the gateway ran and wrote its state at SIGTERM
 
 

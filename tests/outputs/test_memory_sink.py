@@ -38,4 +38,5 @@ def test_memory_sink_sees_what_the_outputs_see() -> None:
     sink = asyncio.run(asyncio.wait_for(go(), 30))
     assert sink.stopped and len(sink.bindings) == 2
     assert sink.bindings[1].config is two
-    assert ("A", "not_oscillating") in sink.changes and ("B", "not_oscillating") in sink.changes
+    # the fake analysis says not_oscillating; on windows still filling that is warming_up
+    assert ("A", "warming_up") in sink.changes and ("B", "warming_up") in sink.changes

@@ -8,6 +8,7 @@ import dataclasses
 import os
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +20,8 @@ from gateway.core.store import ResultStore
 from gateway.outputs.base import Binding
 from gateway.outputs.prometheus import GatewayMetrics, PrometheusSink, StoreCollector
 from gateway.wire.listener import ListenerStats
+from gateway.wire.results import result_block, verdict_code
+from stiction import Assessment, Verdict
 
 
 def _registry() -> CollectorRegistry:
@@ -37,6 +40,22 @@ def _registry() -> CollectorRegistry:
     metrics.state_last_write.set(1_700_000_000)
     metrics.track_server("modbus", ListenerStats())
     return registry
+
+
+def test_a_window_warming_up_is_its_own_verdict_in_metrics_and_registers() -> None:
+    """Issue 23 item 4: `warming_up` is a verdict series (one-hot with the others) and
+    register code 8, as docs/modbus-map.md says."""
+    st = ResultStore(["LIC201"])
+    st.set_result(0, Assessment(Verdict.WARMING_UP, "warming up: ..."), t=1.7e9,
+                  window_fill=0.08, samples=600)
+    reg = CollectorRegistry()
+    reg.register(StoreCollector(st))
+    got = {v: reg.get_sample_value("stiction_loop_verdict", {"loop": "LIC201", "verdict": v})
+           for v in ("warming_up", "not_oscillating", "none")}
+    assert got == {"warming_up": 1.0, "not_oscillating": 0.0, "none": 0.0}
+    assert verdict_code(st.results[0]) == 8 == result_block(st.results[0], code=8)[0]
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "modbus-map.md").read_text()
+    assert "| 8 | warming up |" in doc
 
 
 def test_metrics_read_the_store() -> None:

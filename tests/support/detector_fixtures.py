@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stiction._oscillation import detect_oscillation
 from stiction.scenarios import SimResult, scenario, simulate
+from stiction.signal.oscillation import detect_oscillation
 
 
 @functools.cache

@@ -6,9 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from prometheus_client import CollectorRegistry
 from result_fixtures import NO_KP, sample_store
 
 from gateway.core.store import ResultStore
+from gateway.outputs.prometheus import StoreCollector
 from gateway.wire.results import (
     LAYOUT,
     RESULT_BLOCK_SIZE,
@@ -19,6 +21,7 @@ from gateway.wire.results import (
     unit_images,
     verdict_code,
 )
+from stiction import Assessment, Verdict
 
 
 def _decode_block(regs: np.ndarray, word_order: str = "big") -> dict[str, float]:
@@ -66,7 +69,7 @@ def test_the_layout_fits_the_block_and_the_codes_are_the_documented_ones() -> No
                                                               ("seq", 1, "uint16")]
     assert VERDICT_CODES == {"none": 0, "not_oscillating": 1, "no_stiction": 2,
                              "undetermined": 3, "stiction": 4, "bad_data": 5, "stale": 6,
-                             "valve_not_responding": 7}
+                             "valve_not_responding": 7, "warming_up": 8}
     st = sample_store(latest=False)
     assert [verdict_code(r) for r in st.results] == [4, 2, 0]
     assert verdict_code(st.results[0], stale=True) == 6
@@ -94,3 +97,20 @@ def test_unit_images_hold_every_block() -> None:
     images = unit_images({1: [0, 100], 2: []})
     assert len(images[1]) == 120 and len(images[2]) == RESULT_BLOCK_SIZE
     assert not images[1].any()
+
+
+def test_a_fitted_valve_size_fills_the_jump_in_registers_and_metrics() -> None:
+    """Issue 23 item 7: fd and fs from the valve fitted to PV (no jump of its own): the
+    jump register and series hold J = K (fs - fd) in the one unit, not NaN / nothing."""
+    st = ResultStore(["FIC101"])
+    st.set_result(0, Assessment(Verdict.STICTION, "test", fd=0.20, fs=0.25, fd_op=20.0,
+                                fs_op=25.0), t=1.7e9, window_fill=1.0, samples=3600)
+    b = _decode_block(result_block(st.results[0], code=4))
+    assert (b["fd"], b["fs"]) == (pytest.approx(20.0), pytest.approx(25.0))
+    assert b["jump"] == pytest.approx(9.95, rel=1e-6)
+    reg = CollectorRegistry()
+    reg.register(StoreCollector(st))
+    assert reg.get_sample_value("stiction_loop_jump_ratio", {"loop": "FIC101"}) == \
+        pytest.approx(0.0995)
+    assert reg.get_sample_value("stiction_loop_fd_ratio", {"loop": "FIC101"}) == \
+        pytest.approx(0.20)

@@ -8,8 +8,8 @@ vanishes by itself and a result written meanwhile on the event loop is never hal
 prometheus_client does (2,000 loops, 36,000 lines: 0.10-0.13 s instead of 0.38-0.54 s on
 a 2-core box, time the rendering thread holds the interpreter the pollers share): the
 other collectors through the client's encoder, these series straight from the snapshot's
-rows, the same lines (the tests compare them), last. Only for the escapings that leave legacy names as they are (the
-default; another one renders the slow way).
+rows, the same lines (the tests compare them), last. Only for the escapings that leave
+legacy names as they are (the default; another one renders the slow way).
 """
 
 from __future__ import annotations
@@ -36,9 +36,10 @@ VERDICTS = tuple(str(v) for v in VERDICT_CODES)
 Rows = list[tuple[tuple[str, ...], float]]
 _FAMILIES = (  # name, help; in the order they are yielded
     ("stiction_index", "Stiction index of the latest assessment (He et al. 2007)."),
-    ("fd_ratio", "Dynamic friction fd, fraction of valve span."),
+    ("fd_ratio", "Dynamic friction fd, fraction of valve span (the Modbus registers' and the "
+     "CLI's % of span / 100)."),
     ("fs_ratio", "Static friction fs, fraction of valve span (needs kp)."),
-    ("jump_ratio", "Valve jump J = fs - fd, fraction of valve span."),
+    ("jump_ratio", "Valve jump J = K (fs - fd), K = 1.99, fraction of valve span (needs kp)."),
     ("oscillation_period_seconds", "Oscillation period of the loop."),
     ("verdict", "1 for the loop's current verdict, 0 for the others."),
     ("last_assessment_timestamp_seconds", "Unix time of the latest assessment."),
@@ -105,10 +106,14 @@ def rows_of(st: StoreSnapshot) -> list[Rows]:
         if res is None:
             continue
         a = res.assessment
-        for rows, value in ((si, a.stiction_index), (fd, a.fd), (fs, a.fs), (jump, a.jump),
-                            (period, a.period_s), (ts, res.t), (fill, res.window_fill),
-                            (conf, a.confidence)):
+        for rows, value in ((si, a.stiction_index), (period, a.period_s), (ts, res.t),
+                            (fill, res.window_fill), (conf, a.confidence)):
             _add(rows, name, value)
+        size = a.sizes()
+        if size is not None and size.of_span:  # % of span -> the base unit, 0-1
+            _add(fd, name, size.fd / 100.0)
+            _add(fs, name, None if size.fs is None else size.fs / 100.0)
+            _add(jump, name, None if size.jump is None else size.jump / 100.0)
     return out
 
 

@@ -7,16 +7,18 @@ is an ``int``/``float``, never a string or a boolean), ranges (a sequence number
 2**53, so that it and what a restart adds to it fit the registers' and the store's
 integers; a save time a Unix time between 1970 and 5138; finite sample times), sizes
 (texts, lists) and the assessment of every loop, field by field, as
-:class:`stiction.Assessment` has them. What is not listed here is refused.
+:class:`stiction.Assessment` has them (a field added to it later, and not checked here yet,
+may hold plain values only). Anything else is refused.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from typing import Any
 
-from stiction import Verdict
+from stiction import Assessment, Verdict
 
 __all__ = ["MAX_SEQ", "MAX_WALL", "check_header"]
 
@@ -29,6 +31,7 @@ MAX_ITEMS = 1_000  # warnings or evidence of one assessment
 MAX_WINDOW = 2**31  # samples of one window
 _NUMBERS = ("period_s", "stiction_index", "fd", "fs", "jump", "fd_op", "fs_op", "confidence")
 _VERDICTS = frozenset(str(v) for v in Verdict)
+_FIELDS = frozenset(f.name for f in dataclasses.fields(Assessment))
 
 
 def _number(x: Any, where: str, lo: float = -math.inf, hi: float = math.inf, *,
@@ -96,8 +99,20 @@ def check_assessment(a: Any, where: str) -> None:
         elif key == "evidence":
             for k, e in enumerate(_list(value, at, MAX_ITEMS)):
                 _evidence(e, f"{at}[{k}]")
-        elif key not in ("verdict", "reason"):
+        elif key not in _FIELDS:
             raise ValueError(f"{at}: not a field of an assessment")
+        elif key not in ("verdict", "reason"):  # a field added since: plain values only
+            _plain(value, at)
+
+
+def _plain(value: Any, where: str) -> None:
+    """None, true/false, a number, a bounded text, or a bounded list of those."""
+    items = _list(value, where, MAX_ITEMS) if isinstance(value, list) else [value]
+    for v in items:
+        if isinstance(v, str):
+            _text(v, where)
+        elif v is not None and not isinstance(v, bool | int | float):
+            raise ValueError(f"{where}: {type(v).__name__} where a plain value belongs")
 
 
 def _evidence(e: Any, where: str) -> None:

@@ -29,9 +29,9 @@ from gateway.errors import DeviceError
 from gateway.inputs.opcua import OpcUaInput
 from gateway.inputs.opcua.config import OpcUaPoint
 from plcsim.opcua import NAMESPACE_URI, OpcUaPlcServer
+from stiction.models.simulate import LoopBank, LoopParams
+from stiction.models.valves import HeValve
 from stiction.scenarios import scenario
-from stiction.simulate import LoopBank, LoopParams
-from stiction.valves import HeValve
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(60)]
 

@@ -1,0 +1,254 @@
+"""``analyze``: one window of OP/PV in, one :class:`~stiction.Assessment` out.
+
+The path of a window: the data-quality gates (:mod:`.quality`, :mod:`.responding`); the
+cycle (:func:`stiction.signal.cycle.find_cycle`); every registered detector
+(:mod:`.evidence`, :mod:`stiction.detectors.registry`); one confidence from their votes
+(:mod:`.combine`); when it says stiction, the size (:mod:`stiction.quantify.route`); the
+reason in words (:mod:`.reasons`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._assessment import Assessment, Verdict
+from .._errors import ParameterError
+from .._validate import FloatArray
+from ..detectors.ellipse import EllipseFit
+from ..detectors.hammerstein import HammersteinFit
+from ..quantify.hewang import Quantification, quantify
+from ..quantify.route import limit_cycle, size_valve
+from ..signal.cycle import Cycle, find_cycle
+from .combine import STICTION_CONFIDENCE, confidence
+from .evidence import Findings, gather
+from .quality import check_quality
+from .reasons import not_stiction, said
+
+__all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
+
+PROCESSES = ("self-regulating", "integrating")
+
+
+@dataclasses.dataclass(frozen=True)
+class Details:
+    """The assessment plus the intermediate results (for plots and the reproduce table)."""
+
+    assessment: Assessment
+    op: FloatArray | None = None  # the cleaned window
+    pv: FloatArray | None = None
+    quantification: Quantification | None = None
+    cycle: Cycle | None = None
+    findings: Findings | None = None
+
+
+def _series(name: str, value: ArrayLike) -> FloatArray:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(name, "must be a sequence of numbers") from exc
+    if arr.ndim != 1:
+        raise ParameterError(name, f"must be one-dimensional, has {arr.ndim} dimensions")
+    return arr
+
+
+def _scalar(name: str, value: Any, *, positive: bool = False, non_negative: bool = False,
+            non_zero: bool = False) -> float:
+    if isinstance(value, bool):
+        raise ParameterError(name, f"must be a number, was {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(name, f"must be a number, was {value!r}") from exc
+    if not math.isfinite(v):
+        raise ParameterError(name, f"must be finite, was {value!r}")
+    if positive and v <= 0:
+        raise ParameterError(name, f"must be > 0, was {value!r}")
+    if non_negative and v < 0:
+        raise ParameterError(name, f"must be >= 0, was {value!r}")
+    if non_zero and v == 0:
+        raise ParameterError(name, "must not be 0")
+    return v
+
+
+def _validate(
+    op: ArrayLike, pv: ArrayLike, *, ts: Any, kp: Any, delay: Any, process: Any,
+    op_range: Any, k: Any,
+) -> tuple[FloatArray, FloatArray, float, float | None, float, float | None, float]:
+    op_a = _series("op", op)
+    pv_a = _series("pv", pv)
+    if op_a.size != pv_a.size:
+        raise ParameterError("pv", f"must have the same length as op ({pv_a.size} != "
+                                   f"{op_a.size})")
+    ts_ = _scalar("ts", ts, positive=True)
+    kp_ = None if kp is None else _scalar("kp", kp, non_zero=True)
+    delay_ = _scalar("delay", delay, non_negative=True)
+    if process not in PROCESSES:
+        raise ParameterError("process", f"must be one of {', '.join(PROCESSES)}; was "
+                                        f"{process!r}")
+    span: float | None = None
+    if op_range is not None:
+        try:
+            lo, hi = op_range
+        except (TypeError, ValueError) as exc:
+            raise ParameterError("op_range", f"must be a pair (lo, hi), was {op_range!r}"
+                                 ) from exc
+        lo_ = _scalar("op_range", lo)
+        hi_ = _scalar("op_range", hi)
+        if hi_ <= lo_:
+            raise ParameterError("op_range", f"must have lo < hi, was {op_range!r}")
+        span = hi_ - lo_
+    k_ = _scalar("k", k)
+    if not 1.0 <= k_ <= 2.0:
+        raise ParameterError("k", f"must lie in [1, 2], was {k!r}")
+    return op_a, pv_a, ts_, kp_, delay_, span, k_
+
+
+def analyze(
+    op: ArrayLike,
+    pv: ArrayLike,
+    *,
+    ts: float,
+    kp: float | None = None,
+    delay: float = 0.0,
+    process: str = "self-regulating",
+    op_range: tuple[float, float] | None = None,
+    k: float = 1.99,
+) -> Assessment:
+    """Decide whether one window of a loop oscillates, whether stiction causes it, and size it.
+
+    Parameters
+    ----------
+    op, pv
+        Controller output (OP units, e.g. %) and process variable, equal-length 1-D
+        sequences sampled every ``ts`` seconds. NaN/inf mark missing samples: short gaps
+        (at most 10 % of the window in total, none longer than 2 % of it or 5 samples) are
+        interpolated linearly and reported in ``warnings``; gaps at the ends are trimmed;
+        a window with more or longer gaps gets verdict ``bad_data`` ("too gappy").
+    ts
+        Sample time, s.
+    kp
+        Process gain, PV units per OP unit (per second for an integrating process). Needed
+        for ``fs``; without it only ``fd`` is estimated.
+    delay
+        Process dead time, s; the valve jumps are taken ``delay`` before the PV onsets.
+    process
+        ``"self-regulating"`` (detect on OP, fit exponentials to PV) or ``"integrating"``
+        (detect on PV, fit ramps).
+    op_range
+        OP values of 0 % and 100 % valve span, ``(lo, hi)``. It only turns sizes into
+        fractions of span (``fd``/``fs``/``jump`` = OP units / ``(hi - lo)``); no gate
+        assumes any OP range. Without it ``fd``/``fs``/``jump`` stay None and the sizes are
+        reported in OP units (``fd_op``/``fs_op``), as the reason says.
+    k
+        Overshoot factor K of He's model, in [1, 2]; 1.99 unless the valve is known.
+
+    Returns
+    -------
+    Assessment
+        ``verdict`` with a one-sentence ``reason``; sizes only when the verdict is
+        ``stiction``.
+
+    Raises
+    ------
+    ParameterError
+        An argument is unusable (non-numeric data, unequal lengths, ts <= 0, ...).
+    """
+    return analyze_details(op, pv, ts=ts, kp=kp, delay=delay, process=process,
+                           op_range=op_range, k=k).assessment
+
+
+def analyze_details(
+    op: ArrayLike,
+    pv: ArrayLike,
+    *,
+    ts: float,
+    kp: float | None = None,
+    delay: float = 0.0,
+    process: str = "self-regulating",
+    op_range: tuple[float, float] | None = None,
+    k: float = 1.99,
+    force_quantify: bool = False,
+) -> Details:
+    """:func:`analyze` with its intermediate results. ``force_quantify`` runs the
+    quantification even when detection does not say stiction (as the paper's Table 6 does
+    for every row); the verdict is unchanged and the sizes are then left out of the
+    assessment but available in ``Details.quantification``."""
+    op_a, pv_a, ts_, kp_, delay_, span, k_ = _validate(
+        op, pv, ts=ts, kp=kp, delay=delay, process=process, op_range=op_range, k=k)
+    integrating = process == "integrating"
+    q = check_quality(op_a, pv_a, span)
+    warnings = list(q.warnings)
+    if q.not_responding is not None:
+        return Details(Assessment(Verdict.VALVE_NOT_RESPONDING, q.not_responding.reason(
+            q.op.size), warnings=tuple(warnings)), q.op, q.pv)
+    if q.reason is not None:
+        return Details(Assessment(Verdict.BAD_DATA, q.reason, warnings=tuple(warnings)))
+    op_c, pv_c = q.op, q.pv
+    cycle = find_cycle(op_c, pv_c, integrating=integrating)
+    found = gather(op_c, pv_c, cycle, integrating=integrating, ts=ts_)
+    conf = confidence(found.evidence)
+    si_test = "si_pv" if integrating else "si_op"
+    si = next(e.value for e in found.evidence if e.test == si_test)
+    base: dict[str, Any] = {
+        "oscillating": cycle.regular,
+        "period_s": None if cycle.period is None else cycle.period * ts_,
+        "stiction_index": si, "confidence": conf, "evidence": found.evidence}
+    quant: Quantification | None = None
+    if force_quantify and limit_cycle(cycle, op_c.size):
+        quant = quantify(op_c, pv_c, period=cycle.period or 0.0, ts=ts_, kp=kp_,
+                         delay=delay_, integrating=integrating, k=k_, pv_noise=found.noise[1])
+
+    if conf < STICTION_CONFIDENCE:
+        verdict, reason = not_stiction(cycle, found.evidence, conf)
+        return Details(Assessment(verdict, reason, warnings=tuple(warnings), **base),
+                       op_c, pv_c, quant, cycle, found)
+
+    size = size_valve(op_c, pv_c, cycle, quant=quant, ts=ts_, kp=kp_, delay=delay_,
+                      integrating=integrating, k=k_, pv_noise=found.noise[1],
+                      fitted_valve=_fitted_valve(found), ellipse_band=_ellipse_band(found))
+    warnings.extend(size.warnings)
+    head = f"stiction (confidence {conf:.2f}; {said(found.evidence, 1)})"
+    if size.fd_op is None:
+        return Details(Assessment(Verdict.STICTION, f"{head}; not sized: {size.method}",
+                                  multi_jump=size.multi_jump, warnings=tuple(warnings), **base),
+                       op_c, pv_c, size.quant, cycle, found)
+    scale = 1.0 if span is None else span
+    unit = "of span" if span is not None else "in OP units (give op_range for fractions of span)"
+    fs_txt = "" if size.fs_op is None else f", fs {size.fs_op / scale:.4g}"
+    no_kp = "" if size.fs_op is not None or kp_ is not None else " (fs needs kp)"
+
+    def frac(x: float | None) -> float | None:
+        return None if x is None or span is None else x / span
+
+    return Details(Assessment(
+        Verdict.STICTION,
+        f"{head}; fd {size.fd_op / scale:.4g}{fs_txt} {unit}, {size.method}{no_kp}",
+        fd=frac(size.fd_op), fs=frac(size.fs_op), jump=frac(size.jump_op),
+        fd_op=size.fd_op, fs_op=size.fs_op, cycles_used=size.cycles,
+        multi_jump=size.multi_jump, warnings=tuple(warnings), **base), op_c, pv_c, size.quant,
+        cycle, found)
+
+
+
+
+def _fitted_valve(found: Findings) -> tuple[float, float | None] | None:
+    """fd and fs of the He-Wang valve fitted to PV, where that fit says stiction."""
+    ham = found.results["hammerstein"]
+    if isinstance(ham, HammersteinFit) and found.vote("hammerstein") > 0 and \
+            ham.fd is not None and ham.fd > 0:
+        return ham.fd, ham.fs
+    return None
+
+
+def _ellipse_band(found: Findings) -> float | None:
+    """The OP-PV ellipse's apparent stiction band, where the ellipse does not say otherwise."""
+    ell = found.results["ellipse"]
+    if isinstance(ell, EllipseFit) and ell.band is not None and ell.band > 0 and \
+            found.vote("ellipse") >= 0:
+        return ell.band
+    return None

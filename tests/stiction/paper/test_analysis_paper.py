@@ -1,0 +1,142 @@
+"""Acceptance: He & Wang (2014) Tables 4-9 reproduced, without and with PV noise.
+
+Noise level: white measurement noise of SD 0.05 PV units (kp = 1: 0.05 % of span), plus one
+check at SD 0.1 for the Table 6 rows that matter most. With noise the simulated loop itself
+sometimes leaves the single-jump limit cycle (Table 4 case 1 can stop cycling; slow Table 6
+loops start jumping twice per half cycle, as in the paper's Figure 7): such rows (judged from
+the simulated VP, not from our estimates) are held to "never confidently wrong" instead.
+
+One row is exempt from "under 5 % where the paper was": Table 9 with kp told 0.6 (true 1).
+Any estimator that reads J correctly must return fs = fd + (fs - fd) * 1 / 0.6 = 0.2133
+(6.7 % high); the paper's 3.7 % there comes from its fs - fd being 10 % low throughout
+Table 9 (0.195 - 0.177 = 0.018 instead of 0.020 at kp = 1), which happens to offset the
+wrong gain. We require instead that our fs is within 0.5 % of that unbiased value.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from stiction import Verdict
+from stiction.paper.reproduce import ReproRow, qualifying_errors, reproduce
+from stiction.paper.tables import PAPER_ROWS
+
+
+def _unbiased_fs(row: ReproRow) -> float:
+    p = row.paper
+    true_kp = 1.0 if p.table != 5 else 0.2
+    return p.fd_true + (p.fs_true - p.fd_true) * true_kp / p.kp
+
+
+def _exempt(row: ReproRow) -> bool:
+    return abs(_unbiased_fs(row) / row.paper.fs_true - 1.0) >= 0.05
+
+
+@functools.cache
+def _reproduce(noise: float) -> list[ReproRow]:
+    return reproduce(noise=noise, seed=1)
+
+
+@pytest.fixture(scope="module", params=[0.0, 0.05], ids=["noise-free", "noise-0.05"])
+def rows(request: pytest.FixtureRequest) -> list[ReproRow]:
+    return _reproduce(request.param)
+
+
+def test_every_paper_row_is_reproduced(rows: list[ReproRow]) -> None:
+    assert len(rows) == len(PAPER_ROWS) == 4 + 14 + 7 + 7 + 16
+
+
+def _confidently_wrong(r: ReproRow) -> bool:
+    """Wrong sizes given with a stiction verdict. Every paper row's valve is sticky, so a
+    stiction verdict with no sizes at all (stick-slip seen, no limit cycle to size it from)
+    is not wrong."""
+    a = r.assessment
+    if a.verdict != Verdict.STICTION:
+        return False
+    if a.fd is None and a.fs is None:
+        return "not sized" not in a.reason
+    return (a.fd is None or abs(a.fd / r.paper.fd_true - 1) >= 0.05
+            or (a.fs is not None and abs(a.fs / r.paper.fs_true - 1) >= 0.05 and not _exempt(r)))
+
+
+def test_under_5_percent_where_the_paper_was(rows: list[ReproRow]) -> None:
+    failures = []
+    for r in rows:
+        if not r.clean_limit_cycle:
+            assert not _confidently_wrong(r), r
+            continue
+        if r.paper.fd_err < 5.0 and (r.fd_err is None or r.fd_err >= 5.0):
+            failures.append(f"table {r.paper.table} {r.paper.case}: fd {r.fd} ({r.fd_err})")
+        if r.paper.fs_err < 5.0:
+            if _exempt(r):
+                assert r.fs is not None
+                assert r.fs == pytest.approx(_unbiased_fs(r), rel=0.005)
+            elif r.fs_err is None or r.fs_err >= 5.0:
+                failures.append(f"table {r.paper.table} {r.paper.case}: fs {r.fs} ({r.fs_err})")
+    assert not failures, failures
+
+
+def test_exemption_is_only_table9_kp_0_6(rows: list[ReproRow]) -> None:
+    exempt = [r.paper.case for r in rows if r.paper.fs_err < 5.0 and _exempt(r)]
+    assert exempt == ["kp told 0.6"]
+
+
+def test_mean_error_no_larger_than_the_papers(rows: list[ReproRow]) -> None:
+    paper, ours = qualifying_errors(rows)
+    assert np.mean(ours) <= np.mean(paper)
+
+
+@pytest.mark.parametrize("table", [4, 5, 6, 7, 8, 9])
+def test_mean_error_per_table_noise_free(table: int) -> None:
+    paper, ours = qualifying_errors(r for r in _reproduce(0.0) if r.paper.table == table)
+    assert np.mean(ours) <= np.mean(paper)
+
+
+def test_noise_free_simulations_hold_the_limit_cycle() -> None:
+    assert all(r.clean_limit_cycle for r in _reproduce(0.0))
+
+
+def test_stiction_detected_where_the_paper_was_clear(rows: list[ReproRow]) -> None:
+    for r in rows:
+        if not r.clean_limit_cycle:
+            continue
+        if r.paper.table in (4, 5, 7, 8, 9) or (r.paper.si is not None and r.paper.si >= 0.8):
+            assert r.assessment.verdict == Verdict.STICTION, (r.paper.case, r.assessment)
+
+
+@pytest.mark.parametrize("tau", [450.0, 480.0])
+@pytest.mark.parametrize(("noise", "seed"), [(0.0, 2), (0.05, 1), (0.05, 2), (0.1, 1),
+                                             (0.1, 2), (0.1, 3), (0.2, 3)])
+def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float, seed: int) -> None:
+    """Seeds where the noisy SI reaches the stiction band (>= 0.6) are among these: 0.05/1,
+    0.05/2, 0.1/1, 0.1/2, 0.2/3 (SI 0.62-0.73 on at least one tau)."""
+    rows = reproduce(noise=noise, seed=seed,
+                     rows=[p for p in PAPER_ROWS if p.case == f"tau={tau:.0f}"])
+    (r,) = rows
+    a = r.assessment
+    assert not _confidently_wrong(r), a
+    if a.verdict == Verdict.STICTION and a.fd is None:
+        assert a.multi_jump or "not sized" in a.reason
+    if a.verdict != Verdict.STICTION:
+        assert a.fd is None
+        assert a.fs is None
+
+
+@pytest.mark.parametrize(("noise", "seed"), [(0.0, 0), (0.05, 1), (0.05, 2)])
+def test_table6_slow_loops_330_to_390_are_stiction_and_sized(noise: float, seed: int) -> None:
+    """Table 6, tau 330-390 s (paper SI 0.84-0.64, detected): an independent simulator
+    left them `undetermined` on the SI alone; with PV's triangle, the odd OP-PV
+    correlation and the fitted valve they are called and sized within 5 %."""
+    rows = reproduce(noise=noise, seed=seed,
+                     rows=[p for p in PAPER_ROWS if p.case in ("tau=330", "tau=360", "tau=390")])
+    assert len(rows) == 3
+    for r in rows:
+        a = r.assessment
+        assert a.verdict == Verdict.STICTION, (r.paper.case, a.reason)
+        assert a.fd is not None
+        assert a.fs is not None
+        assert abs(a.fd / 0.18 - 1) < 0.05, (r.paper.case, a.fd)
+        assert abs(a.fs / 0.20 - 1) < 0.05, (r.paper.case, a.fs)
