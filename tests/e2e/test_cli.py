@@ -10,6 +10,7 @@ import time
 import urllib.request
 from pathlib import Path
 
+import pytest
 import yaml
 
 from bench._net import free_port
@@ -34,6 +35,7 @@ def _wait_http(port: int, timeout: float = 20.0) -> str:
             time.sleep(0.2)
 
 
+@pytest.mark.timing  # exits within 5 s of SIGTERM: a wall-clock bound
 def test_run_serves_and_stops_cleanly_on_sigterm(tmp_path: Path) -> None:
     """A gateway whose PLC is not there keeps running (device down), serves metrics, and
     exits 0 within a few seconds of SIGTERM."""
