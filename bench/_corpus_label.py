@@ -10,8 +10,9 @@ with a good valve).
 
 Every other loop is labelled against the same loop in the same operating mode's normal
 runs (the reference, :class:`Reference`): ``propagated`` when the sticky valve's cycle
-reaches it (its OP or PV power in the band of that cycle is :data:`CYCLE_RATIO` times the
-reference's), or when the run has a sticky valve and no other disturbance and its OP or PV
+reaches it (its OP or PV power in the band of that cycle grew :data:`CYCLE_RATIO` times
+more over the reference's than its whole spectrum did: a loop that is only louder does not
+count), or when the run has a sticky valve and no other disturbance and its OP or PV
 SD is :data:`SD_RATIO` times the reference's; ``disturbance`` when a disturbance is active
 and its OP or PV SD is :data:`SD_RATIO` times the reference's; else ``normal``.
 """
@@ -63,7 +64,7 @@ class ValveStats:
     slips: int
     held: float  # share of samples at which the valve did not move
     median_hold: float  # median samples between slips (inf with < 2 slips)
-    period_s: float  # 2 x median time between slips: the stick-slip cycle (nan if none)
+    period_s: float  # 2 x mean time between slips: the stick-slip cycle (nan if none)
 
     @property
     def cause_class(self) -> str:
@@ -79,7 +80,7 @@ def valve_stats(command: np.ndarray, ts: float) -> ValveStats:
     held = 1.0 - moved.size / max(command.size - 1, 1)
     gaps = np.diff(moved)
     hold = float(np.median(gaps)) if gaps.size else float("inf")
-    period = 2.0 * hold * ts if gaps.size else float("nan")
+    period = 2.0 * float(np.mean(gaps)) * ts if gaps.size else float("nan")
     return ValveStats(int(moved.size), float(held), hold, period)
 
 
@@ -124,7 +125,7 @@ class Reference:
 class OtherLabel:
     cause_class: str
     sd_ratio: float  # the larger of OP's and PV's SD over the reference's
-    cycle_ratio: float  # the larger of OP's and PV's power in the cycle band over the ref's
+    cycle_ratio: float  # how much more the cycle's band grew than the whole spectrum (OP, PV)
 
 
 def other_label(loop: LoopSummary, ref: Reference, *, sticky: bool,
@@ -136,8 +137,9 @@ def other_label(loop: LoopSummary, ref: Reference, *, sticky: bool,
     cyc = 0.0
     for f0 in cycles_hz:
         for own, base in ((loop.op_psd, ref.op_psd), (loop.pv_psd, ref.pv_psd)):
-            b = band_power(ref.freqs, base, f0)
-            cyc = max(cyc, band_power(loop.freqs, own, f0) / max(b, 1e-30))
+            grew = band_power(loop.freqs, own, f0) / max(band_power(ref.freqs, base, f0), 1e-30)
+            overall = float(own.sum()) / max(float(base.sum()), 1e-30)
+            cyc = max(cyc, grew / max(overall, 1.0))
     if cyc >= CYCLE_RATIO or (sticky and not disturbed and sd >= SD_RATIO):
         return OtherLabel("propagated", sd, cyc)
     if disturbed and sd >= SD_RATIO:

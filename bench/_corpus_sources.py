@@ -22,6 +22,7 @@ from . import real_data
 from ._corpus_types import PlantRun, Window
 
 REALISTIC_SEEDS = (11, 12, 13, 14, 15)  # not bench/real_data.py's 1-3: no overlap with it
+REALISTIC_CAUSES = realistic.CAUSES
 REALISTIC_PER_CAUSE = 30  # records per cause and seed
 REALISTIC_CLASS = {"stiction": "stiction", "tuning": "tuning", "disturbance": "disturbance",
                    "propagated": "propagated", "noise": "normal", "ramp-load": "ramp-load"}
@@ -42,7 +43,7 @@ def build_realistic(cache: Path, log: Callable[[str], None]) -> int:
     cache.mkdir(parents=True, exist_ok=True)
     done = 0
     for seed in REALISTIC_SEEDS:
-        for cause in realistic.CAUSES:
+        for cause in REALISTIC_CAUSES:
             path = _realistic_path(cache, cause, seed)
             if path.exists():
                 continue
@@ -62,7 +63,7 @@ def build_realistic(cache: Path, log: Callable[[str], None]) -> int:
 def realistic_windows(cache: Path) -> list[Window]:
     out = []
     for seed in REALISTIC_SEEDS:
-        for cause in realistic.CAUSES:
+        for cause in REALISTIC_CAUSES:
             path = _realistic_path(cache, cause, seed)
             if not path.exists():
                 continue

@@ -46,8 +46,10 @@ def _spectrum(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _valve(op: np.ndarray, pos: np.ndarray, band: float) -> dict[str, Any]:
-    """The sticky valve rebuilt from OP (its command), checked against the simulated
-    position, with its stats per gateway window and over the whole recorded part."""
+    """What the corpus keeps of a sticky valve: its OP (from which :func:`valve_stats`
+    rebuilds the valve), the command behind its first move, the rebuilt position's largest
+    distance from the simulated one (the check that the rule is the model's), its cycle
+    and its position at the gateway and historian views' samples."""
     a = float(np.exp(-TS / VALVE_TAU))
     start = float(pos[1] - a * pos[0]) / (1.0 - a)  # the command behind the first move
     cmd = lab.valve_command(op, band, start=start)
@@ -58,16 +60,23 @@ def _valve(op: np.ndarray, pos: np.ndarray, band: float) -> dict[str, Any]:
     # and for slow swings, sharp at a stick-slip cycle's square wave
     w = p[band_ok] * f[band_ok] ** 2
     f0 = float(f[band_ok][np.argmax(w)]) if band_ok.any() else float("nan")
+    snap = slice(HISTORIAN - 1, pos.size - pos.size % HISTORIAN, HISTORIAN)
+    return {"band": band, "f0": f0, "model_error": float(err.max(initial=0.0)),
+            "op": op.astype(np.float32), "start": start,
+            "pos_historian": pos[snap].astype(np.float32),
+            "pos_gateway": {k: pos[round(at * 3600 / TS) :][:GATEWAY_N].astype(np.float32)
+                            for k, at in enumerate(GATEWAY_AT)}}
+
+
+def valve_stats(v: dict[str, Any]) -> dict[str, lab.ValveStats]:
+    """A kept sticky valve's stats per gateway window and over the whole recorded part."""
+    cmd = lab.valve_command(v["op"].astype(np.float64), v["band"], start=v["start"])
     stats = {"whole": lab.valve_stats(cmd, TS)}
     for k, at in enumerate(GATEWAY_AT):
         i = round(at * 3600 / TS)
         if i + GATEWAY_N <= cmd.size:
             stats[f"gateway{k}"] = lab.valve_stats(cmd[i : i + GATEWAY_N], TS)
-    snap = slice(HISTORIAN - 1, pos.size - pos.size % HISTORIAN, HISTORIAN)
-    return {"band": band, "f0": f0, "model_error": float(err.max(initial=0.0)),
-            "stats": stats, "pos_historian": pos[snap].astype(np.float32),
-            "pos_gateway": {k: pos[round(at * 3600 / TS) :][:GATEWAY_N].astype(np.float32)
-                            for k, at in enumerate(GATEWAY_AT)}}
+    return stats
 
 
 def reduce(run: TepRun, arrays: Any) -> dict[str, Any]:

@@ -11,7 +11,7 @@ import numpy as np
 
 from . import _corpus_label as lab
 from ._corpus_plan import TepRun
-from ._corpus_tep import GATEWAY_AT, HISTORIAN, RECORD_H, STUDY, TS
+from ._corpus_tep import GATEWAY_AT, HISTORIAN, RECORD_H, STUDY, TS, valve_stats
 from ._corpus_types import PlantRun, Window
 from ._tep import LOOPS
 
@@ -129,6 +129,8 @@ def tep_records(reduced: Sequence[dict[str, Any]]) -> tuple[list[Window], list[P
         if refs is None:
             continue
         for d in items:
+            for v in d["valves"].values():
+                v["stats"] = valve_stats(v)  # rebuilt from OP at each load: cheap
             ws = _run_windows(d, refs)
             windows += ws
             pr = _plant_run(d, ws)
