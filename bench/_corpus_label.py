@@ -24,7 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-MIN_SLIPS = 6  # as stiction.realistic keeps a sticky record
+MIN_SLIPS = 6  # as stiction.scenarios.realistic keeps a sticky record
 MIN_HOLD = 10  # samples (18 s at 1.8 s): a median rest shorter than this is dither
 SD_RATIO = 1.5  # OP or PV SD over the largest of the normal runs': affected
 CYCLE_RATIO = 4.0  # power in the sticky cycle's band over the largest normal: propagated

@@ -1,4 +1,4 @@
-"""The development corpus's other sources: ``stiction.realistic`` (every cause, several
+"""The development corpus's other sources: ``stiction.scenarios.realistic`` (every cause, several
 seeds, cached), the plant records and the shared TEP runs (bench/real_data.py's loaders)
 and the single cases of ../shared/data/cases."""
 
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from stiction import realistic  # the one import of the generator (moving to stiction.scenarios)
+from stiction.scenarios import realistic  # the one import of the generator
 
 from . import real_data
 from ._corpus_types import PlantRun, Window

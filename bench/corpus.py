@@ -23,7 +23,7 @@ Sources (the fold keys of :data:`bench._corpus_types.SOURCES`):
   * a ``study`` window: the 24 h as 180 s means (480 samples), the sample time of the
     classic TEP data sets (Braatz), for slow loops whose cycles last an hour.
 
-- ``realistic``: ``stiction.realistic`` with every cause in ``CAUSES``, seeds 11-15,
+- ``realistic``: ``stiction.scenarios.realistic`` with every cause in ``CAUSES``, seeds 11-15,
   30 records each (its own sample times, 1-60 s, and lengths).
 - ``plant``: the 80 plant records (../shared/data/plant-stictiongpt), a run per tag.
 - ``tep-shared``: the 58 third-party TEP records (../shared/data/tep-sticky-valves), a run
