@@ -26,10 +26,11 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy import optimize, signal
+from scipy import signal
 
 from .._validate import FloatArray
-from .arrays import percentiles
+from .arrays import mean, percentiles, std
+from .bounded import fminbound
 from .segments import closed_rss, exp_basis, ragged, row_chunks
 from .smooth import smooth
 
@@ -172,8 +173,8 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
         per.sort()
         return float(per[:keep].sum())
 
-    log_tau = optimize.fminbound(total, math.log(0.2), math.log(20.0 * period), xtol=1e-3)
-    return math.exp(float(log_tau))
+    log_tau = fminbound(total, math.log(0.2), math.log(20.0 * period), xtol=1e-3)
+    return math.exp(log_tau)
 
 
 def _basis(t: FloatArray, t0: FloatArray, tau: float | None) -> FloatArray:
@@ -290,8 +291,9 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     kinks = departures(pv, period)
     if kinks.size < 3:
         return None
-    scale = float(pv.std()) or 1.0
-    y = (pv - float(pv.mean())) / scale
+    scale = std(pv) or 1.0
+    centre = mean(pv)
+    y = (pv - centre) / scale
     guard = max(2, round(0.02 * period))
     tau: float | None = None
     if not integrating:
@@ -318,8 +320,7 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     c = np.floor(onsets).astype(np.intp)
     bounds = np.column_stack((c[:-1] + 1, c[1:] + 1))
     a, b, r, cnt = _segment_sums(y, bounds, onsets[:-1], tau)
-    mean = float(pv.mean())
-    return Switches(onsets, a * scale + mean, b * scale, r * scale * scale, cnt, tau)
+    return Switches(onsets, a * scale + centre, b * scale, r * scale * scale, cnt, tau)
 
 
 def fitted_curve(sw: Switches, n: int) -> FloatArray:
