@@ -161,7 +161,7 @@ from __future__ import annotations
 
 from ..._assessment import Evidence
 from ..base import Window
-from .search import HammersteinFit, controller_sign, hammerstein_test
+from .search import SAMPLES_PER_PERIOD, HammersteinFit, abstain, controller_sign, hammerstein_test
 
 __all__ = ["HammersteinFit", "controller_sign", "detect", "hammerstein_test"]
 
@@ -169,4 +169,8 @@ __all__ = ["HammersteinFit", "controller_sign", "detect", "hammerstein_test"]
 def detect(w: Window) -> HammersteinFit | Evidence:
     """``hammerstein``: does the He-Wang valve explain PV better than a linear valve, and by
     how much. Its fit also sizes the valve."""
+    if w.cycle.period is None and w.op.size >= 4 * SAMPLES_PER_PERIOD:
+        # the fit's own search for a period (OP's ACF, then PV's) would find none: the cycle
+        # saw neither signal oscillate, with the same ACF and a looser regularity
+        return abstain("no oscillation to fit")
     return hammerstein_test(w.op, w.pv, ts=w.ts, period=w.period, integrating=w.integrating)
