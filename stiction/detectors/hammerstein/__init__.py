@@ -85,8 +85,12 @@ least squares in :mod:`.least_squares`, the vote in :mod:`.vote`):
    instantaneous relation of either sign between OP's and PV's increments).
 7. The best process-path sticky candidate is refined (band and jump on ``S_REFINE`` x
    ``J_REFINE`` around it, time constants ``TAU_REFINE`` around its own and around the
-   linear valve's) only where that can change the vote: a +1 whose other conditions hold, or
-   a -1 that the coarse fit would give. Elsewhere the coarse sizes stand.
+   linear valve's) only where its sizes can be used: a +1 whose other conditions hold (the
+   sizing reads the fitted valve only when this test votes +1). Elsewhere the coarse fit
+   stands, a -1 included: refining those as well (a finer fit can turn a coarse -1 into 0,
+   or a 0 into -1) cost a tenth of a non-sticky window's analysis and bought no accuracy
+   (measured without it: one false call fewer among the realistic simulations, none of
+   their right calls lost, the plant, Tennessee Eastman and paper verdicts unchanged).
 
 Statistics: ``rss_sticky`` and ``rss_linear``, the residual mean squares as fractions of
 the variance of the fitted PV (1 - R^2) of the sticky valve on the process path (linear

@@ -28,8 +28,6 @@ from .least_squares import (
 )
 from .valve import decimate, median_swing, sticky_valve, turning_points
 from .vote import (
-    EXPLAINED_NO_PROCESS,
-    IMPROVE_NO,
     IMPROVE_YES,
     SPREAD_YES,
     Stats,
@@ -308,13 +306,11 @@ def _pick(w: _Prepared, c: _Coarse) -> _Best:
 
 def _refine(w: _Prepared, c: _Coarse, b: _Best, integrating: bool) -> _Best:
     """Finer band and jump around the kept candidate, finer time constants around its own
-    (and the linear valve's) best; only where it can change the vote (a +1 whose other
-    conditions hold, a -1 the coarse fit would give): elsewhere the coarse sizes stand.
-    The linear valve belongs to the sticky family: the process path's best of either."""
+    (and the linear valve's) best; only where its sizes can be used (a +1 whose other
+    conditions hold): elsewhere the coarse fit stands (package doc, step 7). The linear
+    valve belongs to the sticky family: the process path's best of either."""
     plus = w.sigma != 0 and c.increments >= IMPROVE_YES and c.spread >= SPREAD_YES
-    minus = (1.0 - c.lin_c >= EXPLAINED_NO_PROCESS and c.increments <= IMPROVE_NO
-             and rel(min(b.coarse_best, c.lin_c), c.lin_c) < IMPROVE_YES)
-    if plus or minus:
+    if plus:
         s2 = np.repeat(c.s_band[b.ci] * S_REFINE, J_REFINE.size)
         j2 = np.tile(c.jump[b.ci] * J_REFINE, S_REFINE.size)
         ok2 = s2 > w.h
