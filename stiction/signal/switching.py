@@ -5,8 +5,10 @@ not just one peak and one valley per cycle; they augment PeakFinder (Yoder 2011)
 spline smoothing (Garcia 2010) and a least-squares fit. Our version, in three passes:
 
 1. **Extrema.** PV is block-averaged to about 48 points per period and smoothed robustly
-   (:func:`stiction.signal.smooth.smooth`, GCV-chosen); peaks and valleys with a prominence of at
-   least 30 % of the smoothed range, at least a quarter period apart, alternating.
+   (:func:`stiction.signal.smooth.smooth`, GCV-chosen, one bisquare re-weighting: it keeps
+   outliers from making an extremum as the default three did, at half the passes; this is
+   only the first guess, which the fits below refine); peaks and valleys with a prominence
+   of at least 30 % of the smoothed range, at least a quarter period apart, alternating.
 2. **Departures.** The first guess of each onset is where the smoothed PV leaves the
    extremum's plateau (falls 5 % of the swing below a peak, or rises above a valley).
 3. **Onsets.** With a valve held between jumps, PV in each half cycle is exactly
@@ -92,7 +94,7 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
     nb = x.size // m
     if nb < 8:
         return np.empty(0, dtype=np.intp)
-    z, _ = smooth(x[: nb * m].reshape(nb, m).mean(axis=1), robust=True)
+    z, _ = smooth(x[: nb * m].reshape(nb, m).mean(axis=1), robust=True, robust_steps=1)
     ext = _extrema(z, period / m)
     if ext.size == 0:
         return np.empty(0, dtype=np.intp)
