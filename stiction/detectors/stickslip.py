@@ -195,15 +195,15 @@ def _turns(us: FloatArray, lo: np.ndarray, end: np.ndarray) -> np.ndarray:
     return out
 
 
-def stick_slip(op: FloatArray, pv: FloatArray, *, noise: tuple[float, float] | None = None
-               ) -> StickSlip:
+def stick_slip(op: FloatArray, pv: FloatArray, *, noise: tuple[float, float] | None = None,
+               pv_range: tuple[float, float] | None = None) -> StickSlip:
     """Find stick-slip episodes in a window of OP and PV (equal-length, finite); ``noise``:
-    the white-noise SDs of OP and PV (:func:`~stiction.signal.noise.noise_sd`), when the caller
-    has them."""
+    the white-noise SDs of OP and PV (:func:`~stiction.signal.noise.noise_sd`), ``pv_range``:
+    PV's 2nd and 98th percentiles, when the caller has them."""
     found: list[Episode] = []
     if op.size < 5 * M + 2:
         return StickSlip((), True)
-    p2, p98 = percentiles(pv, (2.0, 98.0))
+    p2, p98 = pv_range or percentiles(pv, (2.0, 98.0))
     sd_op, sd_pv = noise or (noise_sd(op), noise_sd(pv))
     sums = (_prefix(op), _prefix(pv))
     for m in SCALES:
@@ -278,7 +278,8 @@ moved by a disturbance)."""
 def detect(w: Window) -> Evidence:
     """``stick_slip``: stick-slip episodes without a cycle, +1 from ``MIN_EPISODES``
     episodes with one gain sign; never -1."""
-    return _evidence(stick_slip(w.op, w.pv, noise=w.noise))
+    levels = w.levels[1]
+    return _evidence(stick_slip(w.op, w.pv, noise=w.noise, pv_range=(levels[0], levels[2])))
 
 
 def _evidence(ss: StickSlip) -> Evidence:
