@@ -8,11 +8,13 @@ TEST_WORKERS ?= 4
 VENV   := .venv
 BIN     = $(VENV)/bin
 STAMP   = $(VENV)/.installed
+# the bench's extras on top (tep-studio for the development corpus: never make test's)
+BENCH_STAMP = $(VENV)/.installed-bench
 # the exact versions make test, make demo and the wheelhouse install (docs/install.md) use;
 # `make lock` renews it from the newest releases, `make test-latest` tries them first
 LOCK   := constraints.txt
 
-.PHONY: demo test lint typecheck bench soak clean lock test-latest
+.PHONY: demo test lint typecheck bench corpus soak clean lock test-latest
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PYTHON) -m venv $(VENV)
@@ -38,8 +40,17 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy stiction gateway plcsim
 
-bench: $(STAMP)
+$(BENCH_STAMP): $(STAMP)
+	$(BIN)/pip install --quiet --constraint $(LOCK) -e '.[dev,plot,bench]'
+	touch $(BENCH_STAMP)
+
+bench: $(BENCH_STAMP)
 	$(BIN)/python -m bench
+
+# the development corpus (bench/corpus.py): builds what bench/.cache/corpus lacks, then
+# prints its summary; the first build takes about an hour of one core
+corpus: $(BENCH_STAMP)
+	$(BIN)/python -m bench corpus
 
 soak: $(STAMP)
 	$(BIN)/python -m bench.soak
@@ -59,7 +70,7 @@ lock:
 	rm -rf .venv-lock
 	$(PYTHON) -m venv .venv-lock
 	.venv-lock/bin/pip install --quiet --upgrade pip
-	.venv-lock/bin/pip install --quiet '.[dev,plot]'
+	.venv-lock/bin/pip install --quiet '.[dev,plot,bench]'
 	{ echo "# The exact versions a fresh install uses (make test, make demo, the wheelhouse)."; \
 	  echo "# Renewed by 'make lock'; 'make test-latest' shows what the newest would break."; \
 	  .venv-lock/bin/pip freeze --all --exclude stiction-gateway --exclude setuptools \

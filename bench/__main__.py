@@ -12,7 +12,7 @@ import pkgutil
 import sys
 from pathlib import Path
 
-SKIP = {"soak"}
+SKIP = {"soak", "corpus", "corpus_baseline"}  # own make targets: make soak, make corpus
 # as the gateway's analysis workers (gateway.runtime.scheduler): one BLAS thread each, set
 # before numpy is first imported
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):

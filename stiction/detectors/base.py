@@ -16,14 +16,19 @@ Detectors never import each other nor the diagnosis; what they share lives below
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
 from .._assessment import Evidence
 from .._validate import FloatArray
+from ..signal.arrays import percentiles
 from ..signal.cycle import Cycle
 
-__all__ = ["NO_CYCLE", "Detector", "Fitted", "Window", "evidence_of"]
+__all__ = ["LEVELS", "NO_CYCLE", "Detector", "Fitted", "Window", "evidence_of"]
+
+LEVELS = (2.0, 50.0, 98.0)
+"""The percentiles of :attr:`Window.levels`."""
 
 NO_CYCLE = "no cycle to look at"
 """The note of a test that needs a cycle on a window without one."""
@@ -45,6 +50,12 @@ class Window:
         """The cycle's period in samples; None without a cycle (or one under a sample)."""
         p = self.cycle.period
         return p if p is not None and p >= 1.0 else None
+
+    @functools.cached_property
+    def levels(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """OP's and PV's 2nd, 50th and 98th percentiles (``np.percentile``), computed once
+        for the tests that scale by them (Kano's stuck intervals, the stick-slip episodes)."""
+        return percentiles(self.op, LEVELS), percentiles(self.pv, LEVELS)
 
 
 @runtime_checkable

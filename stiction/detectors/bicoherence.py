@@ -127,7 +127,7 @@ from .. import _validate as v
 from .._assessment import Evidence
 from .._errors import ParameterError
 from .._validate import FloatArray
-from ..signal.arrays import percentiles, unit_detrended
+from ..signal.arrays import mean, percentiles, std, unit_detrended
 from .base import NO_CYCLE, Window
 
 __all__ = ["Bicoherence", "bicoherence_test", "detect"]
@@ -227,7 +227,7 @@ def bicoherence_test(x: ArrayLike, *, period: float | None = None) -> Bicoherenc
     cut = int(TRIM * m)
     core = ordered[cut : m - cut] if m - 2 * cut >= 2 else ordered
     bmax = float(ordered[-1])
-    nli = bmax - (float(core.mean()) + 2.0 * float(core.std()))
+    nli = bmax - (mean(core) + 2.0 * std(core))
     third = _third_harmonic(spec, c) if c else None
     res = Bicoherence(0, "", ngi, nli, tnli, bmax, crit, third, k, seg_len, m)
     if ngi > NGI_THRESHOLD and nli > NLI_THRESHOLD:

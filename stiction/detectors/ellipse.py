@@ -76,6 +76,7 @@ from scipy import fft
 from .._assessment import Evidence
 from .._errors import ParameterError
 from .._validate import FloatArray
+from ..signal.arrays import std
 from ..signal.oscillation import detrend
 from .base import NO_CYCLE, Window
 
@@ -223,8 +224,8 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     u = detrend((op - op[0]) / r_op)
     y = detrend((pv - pv[0]) / r_pv)
     step = max(1, int(p // POINTS_PER_PERIOD))
-    su = float(u.std())
-    sy = float(y.std())
+    su = std(u)
+    sy = std(y)
     if not (su > 0 and sy > 0):
         return _none("OP or PV does not move")
     su *= r_op
@@ -250,7 +251,7 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     filt = fft.irfft(spec, n, axis=1)
     cut = int(EDGE * p)
     uf, yf = filt[0, cut : n - cut : step], filt[1, cut : n - cut : step]
-    su2, sy2 = float(uf.std()), float(yf.std())
+    su2, sy2 = std(uf), std(yf)
     if not (su2 > 0 and sy2 > 0):
         return _none("no oscillation inside the pass band", share)
     xs, ys = uf / su2, yf / sy2

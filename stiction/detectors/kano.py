@@ -87,7 +87,7 @@ from .._errors import ParameterError
 from .._validate import FloatArray
 from ..signal.arrays import median, percentiles
 from ..signal.noise import noise_sd
-from .base import Window
+from .base import LEVELS, Window
 
 __all__ = ["Kano", "detect", "kano_test"]
 
@@ -176,12 +176,14 @@ def _one_gain_sign(a: np.ndarray, b: np.ndarray, travel: FloatArray, offset: Flo
 
 
 def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None,
-              noise: tuple[float, float] | None = None) -> Kano:
+              noise: tuple[float, float] | None = None,
+              levels: tuple[tuple[float, ...], tuple[float, ...]] | None = None) -> Kano:
     """Kano et al. (2004) stuck-interval test on one window (see the module doc).
 
     ``op``, ``pv``: equal-length finite 1-D arrays; ``period``: the oscillation period in
     samples, when known (sets the averaging scale); ``noise``: the white-noise SDs of OP and
-    PV (:func:`~stiction.signal.noise.noise_sd`), when the caller has them."""
+    PV (:func:`~stiction.signal.noise.noise_sd`), ``levels``: their 2nd, 50th and 98th
+    percentiles (:attr:`~stiction.detectors.base.Window.levels`), when the caller has them."""
     m = _scale(period)
     op, pv = _arrays(op, pv)
     n = op.size
@@ -191,7 +193,7 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None,
         return _none("non-finite samples")
     # work on centred, scaled copies: thresholds are relative, so this changes no result
     # but keeps huge or tiny magnitudes away from overflow and cancellation
-    po, pp = percentiles(op, (2.0, 50.0, 98.0)), percentiles(pv, (2.0, 50.0, 98.0))
+    po, pp = levels or (percentiles(op, LEVELS), percentiles(pv, LEVELS))
     r_op, r_pv = float(po[2] - po[0]), float(pp[2] - pp[0])
     if not (r_pv > 0 and math.isfinite(r_pv)):
         return _none("PV does not move at all: no stick-slip to see (dead sensor or valve "
@@ -267,4 +269,4 @@ def _vote(index: float, count: int, still_share: float, never_stuck: bool,
 
 def detect(w: Window) -> Kano:
     """``kano``: stuck intervals, PV still while OP ramps, then a slip."""
-    return kano_test(w.op, w.pv, period=w.period, noise=w.noise)
+    return kano_test(w.op, w.pv, period=w.period, noise=w.noise, levels=w.levels)

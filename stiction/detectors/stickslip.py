@@ -90,16 +90,21 @@ class StickSlip:
         return bool(self.episodes) and self.consistent
 
 
-def _means(x: FloatArray, m: int) -> tuple[FloatArray, FloatArray]:
-    """Prefix sums of ``x`` and its centred ``m``-sample running mean (ends held)."""
-    c = np.concatenate(([0.0], np.cumsum(x)))
+def _prefix(x: FloatArray) -> FloatArray:
+    """Prefix sums of ``x``, 0 first (once per window: both scales read them)."""
+    return np.concatenate(([0.0], np.cumsum(x)))
+
+
+def _means(c: FloatArray, m: int) -> FloatArray:
+    """The centred ``m``-sample running mean (ends held) of the signal whose prefix sums
+    are ``c``."""
     v = (c[m:] - c[:-m]) / m
     h = m // 2
-    out = np.empty(x.size)
+    out = np.empty(c.size - 1)
     out[h : h + v.size] = v
     out[:h] = v[0]
     out[h + v.size :] = v[-1]
-    return c, out
+    return out
 
 
 def _candidates(a: FloatArray, thr: float, m: int) -> list[int]:
@@ -190,19 +195,20 @@ def _turns(us: FloatArray, lo: np.ndarray, end: np.ndarray) -> np.ndarray:
     return out
 
 
-def stick_slip(op: FloatArray, pv: FloatArray, *, noise: tuple[float, float] | None = None
-               ) -> StickSlip:
+def stick_slip(op: FloatArray, pv: FloatArray, *, noise: tuple[float, float] | None = None,
+               pv_range: tuple[float, float] | None = None) -> StickSlip:
     """Find stick-slip episodes in a window of OP and PV (equal-length, finite); ``noise``:
-    the white-noise SDs of OP and PV (:func:`~stiction.signal.noise.noise_sd`), when the caller
-    has them."""
+    the white-noise SDs of OP and PV (:func:`~stiction.signal.noise.noise_sd`), ``pv_range``:
+    PV's 2nd and 98th percentiles, when the caller has them."""
     found: list[Episode] = []
     if op.size < 5 * M + 2:
         return StickSlip((), True)
-    p2, p98 = percentiles(pv, (2.0, 98.0))
+    p2, p98 = pv_range or percentiles(pv, (2.0, 98.0))
     sd_op, sd_pv = noise or (noise_sd(op), noise_sd(pv))
+    sums = (_prefix(op), _prefix(pv))
     for m in SCALES:
         taken = np.array([f.at for f in found])
-        new = _episodes(op, pv, m, (sd_pv, sd_op, float(p98 - p2)))
+        new = _episodes(sums, m, (sd_pv, sd_op, float(p98 - p2)))
         if taken.size and new:
             at = np.array([e.at for e in new])
             clash = (np.abs(taken[None, :] - at[:, None]) < 2 * m).any(axis=1)
@@ -213,25 +219,27 @@ def stick_slip(op: FloatArray, pv: FloatArray, *, noise: tuple[float, float] | N
     return StickSlip(tuple(found), len(signs) <= 1)
 
 
-def _episodes(op: FloatArray, pv: FloatArray, m: int, noise: tuple[float, float, float]
+def _episodes(sums: tuple[FloatArray, FloatArray], m: int, noise: tuple[float, float, float]
               ) -> list[Episode]:
-    """The episodes seen with ``m``-sample means on either side of the slip; ``noise``: the
-    noise SDs of PV and OP and PV's 2-98 % range. Every candidate slip is checked at once
-    (arrays over the candidates)."""
-    n = op.size
+    """The episodes seen with ``m``-sample means on either side of the slip; ``sums``: the
+    prefix sums of OP and PV (:func:`_prefix`); ``noise``: the noise SDs of PV and OP and
+    PV's 2-98 % range. Every candidate slip is checked at once (arrays over the
+    candidates)."""
+    cu, cy = sums
+    n = cu.size - 1
     if n < 5 * m + 2:  # the means before and after, a stuck phase of 3 m
         return []
     sd_y, sd_u, rng = noise
     thr = max(JUMP_NOISE * sd_y * math.sqrt(2.0 / m), JUMP_RANGE_FRACTION * rng)
     if thr <= 0:
         return []
-    cy, ys = _means(pv, m)
+    ys = _means(cy, m)
     # at sample t = m + i: mean after - mean before
     dy = (cy[2 * m :] - 2.0 * cy[m : n - m + 1] + cy[: n - 2 * m + 1]) / m
     cand = np.asarray(_candidates(np.abs(dy), thr, m), dtype=np.intp)
     if cand.size == 0:
         return []
-    cu, us = _means(op, m)
+    us = _means(cu, m)
     at = cand + m
     d = dy[cand]
     step = (cu[at + m] - 2.0 * cu[at] + cu[at - m]) / m
@@ -270,7 +278,8 @@ moved by a disturbance)."""
 def detect(w: Window) -> Evidence:
     """``stick_slip``: stick-slip episodes without a cycle, +1 from ``MIN_EPISODES``
     episodes with one gain sign; never -1."""
-    return _evidence(stick_slip(w.op, w.pv, noise=w.noise))
+    levels = w.levels[1]
+    return _evidence(stick_slip(w.op, w.pv, noise=w.noise, pv_range=(levels[0], levels[2])))
 
 
 def _evidence(ss: StickSlip) -> Evidence:

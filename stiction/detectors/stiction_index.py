@@ -100,16 +100,23 @@ def half_periods(x: FloatArray, period: float, *,
     return np.asarray(z, dtype=np.float64), ys
 
 
-def stiction_index(x: FloatArray, period: float) -> StictionIndex:
+def stiction_index(x: FloatArray, period: float, *, detrended: bool = False,
+                   noise: float | None = None) -> StictionIndex:
     """He et al. (2007) stiction index of ``x`` oscillating with ``period`` samples.
+
+    ``detrended``: ``x`` has its mean and straight line removed already (as the cycle's
+    signals have); ``noise``: the white-noise SD of the signal ``x`` was made from (by
+    second differences, :func:`~stiction.signal.noise.noise_sd`, which a straight line does
+    not change and the few knots of a running-median baseline barely move), when the caller
+    has it.
 
     Many half periods are fitted at once: each is one row of a zero-padded matrix (rows of
     similar length together, a few thousand entries at a time), and both two-parameter fits
     (offset + amplitude of the sine, of the triangle) follow in closed form from the row
     sums."""
-    y = detrend(x)
+    y = x if detrended else detrend(x)
     z, ys = half_periods(x, period, detrended=y)
-    var_noise = noise_sd(x) ** 2
+    var_noise = (noise_sd(x) if noise is None else noise) ** 2
     z0, z1 = z[:-1], z[1:]
     length = z1 - z0
     i0 = np.floor(z0).astype(np.intp) + 1
@@ -186,7 +193,7 @@ swings by +-0.1 from window to window on one loop (a sine-like disturbance reads
 cycles of a Tennessee Eastman run), across the 0.6 line."""
 
 
-def _si(name: str, s: Signal, fallback: float | None) -> Evidence:
+def _si(name: str, s: Signal, fallback: float | None, noise: float) -> Evidence:
     label = name[-2:].upper()
     period = s.osc.period if s.osc.oscillating else fallback
     if period is None:
@@ -197,7 +204,7 @@ def _si(name: str, s: Signal, fallback: float | None) -> Evidence:
     if s.x.size / period < MIN_CYCLES:
         return Evidence(name, None, 0, f"{label}: {s.x.size / period:.1f} cycles, too few "
                         f"to judge the shape (need {SHAPE_CYCLES:g})")
-    si = stiction_index(s.x, period)
+    si = stiction_index(s.x, period, detrended=True, noise=noise)
     if si.si is None:
         return Evidence(name, None, 0, f"too few clean half periods in {label} to fit")
     if not si.resolved:
@@ -217,11 +224,11 @@ def detect_op(w: Window) -> Evidence:
     """``si_op``: OP's half cycles, a triangle (+1, SI >= 0.6) or a sine (-1, SI <= 0.4),
     only when the shapes stand out of the noise and the window holds ``SHAPE_CYCLES``. A
     sticky valve makes OP a triangle in a fast self-regulating loop."""
-    return _si("si_op", w.cycle.op, w.cycle.period)
+    return _si("si_op", w.cycle.op, w.cycle.period, w.noise[0])
 
 
 def detect_pv(w: Window) -> Evidence:
     """``si_pv``: the same on PV, where a sticky valve draws its triangle in an integrating
     or slow loop. Both run whatever the process type, so a level loop analysed as
     self-regulating still shows its triangle."""
-    return _si("si_pv", w.cycle.pv, w.cycle.period)
+    return _si("si_pv", w.cycle.pv, w.cycle.period, w.noise[1])

@@ -5,8 +5,10 @@ not just one peak and one valley per cycle; they augment PeakFinder (Yoder 2011)
 spline smoothing (Garcia 2010) and a least-squares fit. Our version, in three passes:
 
 1. **Extrema.** PV is block-averaged to about 48 points per period and smoothed robustly
-   (:func:`stiction.signal.smooth.smooth`, GCV-chosen); peaks and valleys with a prominence of at
-   least 30 % of the smoothed range, at least a quarter period apart, alternating.
+   (:func:`stiction.signal.smooth.smooth`, GCV-chosen, one bisquare re-weighting: it keeps
+   outliers from making an extremum as the default three did, at half the passes; this is
+   only the first guess, which the fits below refine); peaks and valleys with a prominence
+   of at least 30 % of the smoothed range, at least a quarter period apart, alternating.
 2. **Departures.** The first guess of each onset is where the smoothed PV leaves the
    extremum's plateau (falls 5 % of the swing below a peak, or rises above a valley).
 3. **Onsets.** With a valve held between jumps, PV in each half cycle is exactly
@@ -26,10 +28,11 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy import optimize, signal
+from scipy import signal
 
 from .._validate import FloatArray
-from .arrays import percentiles
+from .arrays import mean, percentiles, std
+from .bounded import fminbound
 from .segments import closed_rss, exp_basis, ragged, row_chunks
 from .smooth import smooth
 
@@ -91,7 +94,7 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
     nb = x.size // m
     if nb < 8:
         return np.empty(0, dtype=np.intp)
-    z, _ = smooth(x[: nb * m].reshape(nb, m).mean(axis=1), robust=True)
+    z, _ = smooth(x[: nb * m].reshape(nb, m).mean(axis=1), robust=True, robust_steps=1)
     ext = _extrema(z, period / m)
     if ext.size == 0:
         return np.empty(0, dtype=np.intp)
@@ -172,8 +175,8 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
         per.sort()
         return float(per[:keep].sum())
 
-    log_tau = optimize.fminbound(total, math.log(0.2), math.log(20.0 * period), xtol=1e-3)
-    return math.exp(float(log_tau))
+    log_tau = fminbound(total, math.log(0.2), math.log(20.0 * period), xtol=1e-3)
+    return math.exp(log_tau)
 
 
 def _basis(t: FloatArray, t0: FloatArray, tau: float | None) -> FloatArray:
@@ -290,8 +293,9 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     kinks = departures(pv, period)
     if kinks.size < 3:
         return None
-    scale = float(pv.std()) or 1.0
-    y = (pv - float(pv.mean())) / scale
+    scale = std(pv) or 1.0
+    centre = mean(pv)
+    y = (pv - centre) / scale
     guard = max(2, round(0.02 * period))
     tau: float | None = None
     if not integrating:
@@ -318,8 +322,7 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     c = np.floor(onsets).astype(np.intp)
     bounds = np.column_stack((c[:-1] + 1, c[1:] + 1))
     a, b, r, cnt = _segment_sums(y, bounds, onsets[:-1], tau)
-    mean = float(pv.mean())
-    return Switches(onsets, a * scale + mean, b * scale, r * scale * scale, cnt, tau)
+    return Switches(onsets, a * scale + centre, b * scale, r * scale * scale, cnt, tau)
 
 
 def fitted_curve(sw: Switches, n: int) -> FloatArray:

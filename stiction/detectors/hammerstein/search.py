@@ -28,8 +28,6 @@ from .least_squares import (
 )
 from .valve import decimate, median_swing, sticky_valve, turning_points
 from .vote import (
-    EXPLAINED_NO_PROCESS,
-    IMPROVE_NO,
     IMPROVE_YES,
     SPREAD_YES,
     Stats,
@@ -37,7 +35,7 @@ from .vote import (
     swing_at_onsets,
 )
 
-__all__ = ["HammersteinFit", "controller_sign", "hammerstein_test"]
+__all__ = ["SAMPLES_PER_PERIOD", "HammersteinFit", "abstain", "controller_sign", "hammerstein_test"]
 
 MAX_CYCLES = 12  # periods fitted: enough cycles for the statistics, few for speed
 MIN_CYCLES = 3.0  # periods the window must hold (two full swings after the start)
@@ -83,7 +81,8 @@ class HammersteinFit:
         return Evidence("hammerstein", self.improvement, self.vote, self.note)
 
 
-def _none(note: str) -> HammersteinFit:
+def abstain(note: str) -> HammersteinFit:
+    """The fit that did not run, and why."""
     return HammersteinFit(None, None, None, None, None, None, None, None, None, None, None,
                           None, 0, note)
 
@@ -172,7 +171,7 @@ def _prepare(op: FloatArray, pv: FloatArray, p: float | None, integrating: bool
     """The window as the fit sees it, or a fit that abstains and says why."""
     n = op.size
     if n < 4 * SAMPLES_PER_PERIOD or not (np.isfinite(op).all() and np.isfinite(pv).all()):
-        return _none(f"window too short or not finite ({n} samples)")
+        return abstain(f"window too short or not finite ({n} samples)")
     if p is None:
         for x in (op, pv):
             osc = detect_oscillation(x)
@@ -180,11 +179,11 @@ def _prepare(op: FloatArray, pv: FloatArray, p: float | None, integrating: bool
                 p = osc.period
                 break
         if p is None:
-            return _none("no oscillation to fit")
+            return abstain("no oscillation to fit")
     if p < MIN_PERIOD:
-        return _none(f"period of {p:.3g} samples: too fast to see a valve stick")
+        return abstain(f"period of {p:.3g} samples: too fast to see a valve stick")
     if n < MIN_CYCLES * p:
-        return _none(f"fewer than {MIN_CYCLES:g} periods in the window")
+        return abstain(f"fewer than {MIN_CYCLES:g} periods in the window")
     sigma = controller_sign(op, pv, p)
     use = int(min(n, MAX_CYCLES * p))
     q = max(1, int(p // SAMPLES_PER_PERIOD))
@@ -193,19 +192,19 @@ def _prepare(op: FloatArray, pv: FloatArray, p: float | None, integrating: bool
     pu, pvr = percentiles(u, (5.0, 50.0, 95.0)), percentiles(v, (5.0, 50.0, 95.0))
     su, sv = float(pu[2] - pu[0]), float(pvr[2] - pvr[0])
     if not (su > 0 and sv > 0 and math.isfinite(su) and math.isfinite(sv)):
-        return _none("OP or PV does not move")
+        return abstain("OP or PV does not move")
     u = (u - pu[1]) / su
     v = (v - pvr[1]) / sv
     h = max(H_NOISE * noise_sd(u), H_RANGE)
     swing = median_swing(u, turning_points(u, h))
     if not swing > 2.0 * h:
-        return _none("OP does not reverse beyond its noise")
+        return abstain("OP does not reverse beyond its noise")
     # reversals smaller than the smallest band candidate cannot move the valve: merge them
     # into the runs (the running extreme then carries OP on), which keeps the runs few
     h = max(h, MERGE * swing)
     piv = turning_points(u, h)
     if piv.size < 2 * MIN_CYCLES + 2:
-        return _none("OP does not reverse often enough beyond its noise")
+        return abstain("OP does not reverse often enough beyond its noise")
     # start at OP's first turning point: the valve's state before it is unknown, and at a
     # turning point of a stick-slip cycle the valve has just slipped
     c0 = int(piv[1])
@@ -216,7 +215,7 @@ def _prepare(op: FloatArray, pv: FloatArray, p: float | None, integrating: bool
     lags = DEAD_GRID[v.size // 4 > DEAD_GRID]
     target = Target.build(v, lags)
     if not (target.svv_c > 0).all():
-        return _none("PV does not move")
+        return abstain("PV does not move")
     return _Prepared(u, v, piv, h, swing, p, q, su, sv, sigma, lags, target)
 
 
@@ -307,13 +306,11 @@ def _pick(w: _Prepared, c: _Coarse) -> _Best:
 
 def _refine(w: _Prepared, c: _Coarse, b: _Best, integrating: bool) -> _Best:
     """Finer band and jump around the kept candidate, finer time constants around its own
-    (and the linear valve's) best; only where it can change the vote (a +1 whose other
-    conditions hold, a -1 the coarse fit would give): elsewhere the coarse sizes stand.
-    The linear valve belongs to the sticky family: the process path's best of either."""
+    (and the linear valve's) best; only where its sizes can be used (a +1 whose other
+    conditions hold): elsewhere the coarse fit stands (package doc, step 7). The linear
+    valve belongs to the sticky family: the process path's best of either."""
     plus = w.sigma != 0 and c.increments >= IMPROVE_YES and c.spread >= SPREAD_YES
-    minus = (1.0 - c.lin_c >= EXPLAINED_NO_PROCESS and c.increments <= IMPROVE_NO
-             and rel(min(b.coarse_best, c.lin_c), c.lin_c) < IMPROVE_YES)
-    if plus or minus:
+    if plus:
         s2 = np.repeat(c.s_band[b.ci] * S_REFINE, J_REFINE.size)
         j2 = np.tile(c.jump[b.ci] * J_REFINE, S_REFINE.size)
         ok2 = s2 > w.h
