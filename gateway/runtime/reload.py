@@ -144,8 +144,10 @@ class Runtime:
 
 
 def device_points(loops: Sequence[LoopConfig]) -> list[PointSpec]:
-    """A device's point list: each loop's OP then PV, in loop order."""
-    return [PointSpec(lp.name, role, p.address, p.scale, p.offset, p.range)
+    """A device's point list: each loop's OP then PV, in loop order (an OP's span is its
+    loop's op_range: core.points judges it by that too)."""
+    return [PointSpec(lp.name, role, p.address, p.scale, p.offset, p.range,
+                      lp.op_range if role == "op" else None, lp.origin)
             for lp in loops for role, p in (("op", lp.op), ("pv", lp.pv))]
 
 
