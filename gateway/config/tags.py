@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import os
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -258,5 +259,5 @@ def tag_entries(problems: Problems, tables: list[TagTable],
             where = f"line {row.line}" + (f": loop {name}" if name else "")
             mapping = loop_mapping(row, protocols.get(row.cells.get("device", "")))
             section = Section(_RowProblems(problems, table, row), where, mapping)
-            section.origin = f"{table.source}: line {row.line}"
+            section.origin = f"{os.path.basename(table.source)}: line {row.line}"
             yield i, name, section

@@ -254,6 +254,7 @@ def _carry_results(old: Runtime, new: Runtime) -> None:
         new.store.latest_op[i] = old.store.latest_op[j]
         new.store.latest_pv[i] = old.store.latest_pv[j]
         new.store.stale[i] = old.store.stale[j]
+        new.store.down[i] = old.store.down[j]
 
 
 def reload_summary(old: Runtime, new: Runtime) -> str:

@@ -76,7 +76,8 @@ def refusal(code: int | None, table: str, address: int, count: int, *, unit: int
         fix += (f"; check the address of {where} against the PLC's register list; "
                 f"addresses are 0-based: 40001 is 0")
         fix += _references(points, table)
-        if len({(p.loop, p.role) for p in points}) > 1:
+        if len({(p.loop, p.role) for p in points}) > 1 \
+                and _used(points, address, count) < count:
             fix += ("; if each of them is in the map, the PLC refuses the unused registers "
                     "read between them: set the device's merge_gap to 0")
         return name, fix
@@ -112,6 +113,14 @@ def points_text(points: Sequence[PointSpec], limit: int = 3) -> str:
         parts.append(f"{loop} {roles}" + (f" ({origin})" if origin else ""))
     more = len(loops) - limit
     return ", ".join(parts) + (f" and {more} more loop(s)" if more > 0 else "")
+
+
+def _used(points: Sequence[PointSpec], address: int, count: int) -> int:
+    """How many of the request's registers a point reads (the rest: a gap read to save a
+    request, which some PLCs refuse)."""
+    used = {a.address + k for p in points for a in [p.address]
+            for k in range(int(getattr(a, "width", 0)))}
+    return len(used & set(range(address, address + count)))
 
 
 def _references(points: Sequence[PointSpec], table: str) -> str:
