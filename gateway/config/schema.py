@@ -18,8 +18,9 @@ import reprlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["MISSING", "Problems", "Section", "choice", "entries", "integer", "label_value",
-           "listen_address", "mapping", "nonempty_list", "number", "number_pair", "string"]
+__all__ = ["MISSING", "Problems", "Section", "choice", "entries", "flag", "integer",
+           "label_value", "listen_address", "mapping", "nonempty_list", "number", "number_pair",
+           "string"]
 
 T = TypeVar("T")
 
@@ -76,6 +77,7 @@ class Section:
         self.valid = isinstance(raw, Mapping)
         self.raw: Mapping[str, Any] = raw if isinstance(raw, Mapping) else {}
         self._seen: dict[str, None] = {}  # keys read, in reading order
+        self.origin = ""  # where the mapping was listed, if not the YAML ("loops.csv: line 4")
         if raw is not None and not self.valid:
             name = prefix.rstrip(".") or None
             problems.add(where, name, f"must be a mapping, was {_type_name(raw)}")
@@ -138,6 +140,16 @@ def string(value: Any) -> str:
     if not isinstance(value, str) or not value:
         raise TypeError("must be a non-empty string")
     return value
+
+
+def flag(value: Any) -> bool:
+    """true or false (a tag list's cell: true/false, yes/no, 1/0, any case)."""
+    if isinstance(value, bool):
+        return value
+    words = {"true": True, "yes": True, "1": True, "false": False, "no": False, "0": False}
+    if isinstance(value, str | int) and str(value).strip().lower() in words:
+        return words[str(value).strip().lower()]
+    raise TypeError("must be true or false")
 
 
 def integer(lo: int | None = None, hi: int | None = None) -> Callable[[Any], int]:

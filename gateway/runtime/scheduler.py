@@ -10,7 +10,8 @@ which bounds the memory a round holds. A round that is still running when the ne
 makes that one wait (no pile-up). Workers run at a lower CPU priority (``nice`` +10 by
 default), so on a busy box the polling event loop wins a contested core and analysis only
 takes what is left, and they die with the gateway however it ends (:func:`die_with_parent`).
-Each verdict change of a loop is logged once, with its reason.
+Each verdict change of a loop is logged once, with its reason (not while the loop is
+``device_down``: the device's one line says why, not one line per loop).
 """
 
 from __future__ import annotations
@@ -174,7 +175,8 @@ class AnalysisScheduler:
             for index, assessment, fill, samples, dur in results:
                 before = store.results[index]
                 store.set_result(index, assessment, t=t, window_fill=fill, samples=samples)
-                log_verdict_change(store.loops[index], before, assessment)
+                if not (store.stale[index] and store.down[index]):  # the device's line says
+                    log_verdict_change(store.loops[index], before, assessment)
                 if self.on_duration is not None:
                     self.on_duration(dur)
             done += len(results)
