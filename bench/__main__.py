@@ -12,7 +12,8 @@ import pkgutil
 import sys
 from pathlib import Path
 
-SKIP = {"soak", "corpus", "corpus_baseline"}  # own make targets: make soak, make corpus
+# own make targets (make soak, make corpus) or their own command (python -m bench.train)
+SKIP = {"soak", "corpus", "corpus_baseline", "train"}
 # as the gateway's analysis workers (gateway.runtime.scheduler): one BLAS thread each, set
 # before numpy is first imported
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):

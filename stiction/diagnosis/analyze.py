@@ -2,9 +2,9 @@
 
 The path of a window: the data-quality gates (:mod:`.quality`, :mod:`.responding`); the
 cycle (:func:`stiction.signal.cycle.find_cycle`); every registered detector
-(:mod:`.evidence`, :mod:`stiction.detectors.registry`); one confidence from their votes
-(:mod:`.combine`); when it says stiction, the size (:mod:`stiction.quantify.route`); the
-reason in words (:mod:`.reasons`).
+(:mod:`.evidence`, :mod:`stiction.detectors.registry`); one confidence from what they saw
+(:mod:`.features`, the learned :mod:`.model`); when it says stiction, the size
+(:mod:`stiction.quantify.route`); the reason in words (:mod:`.reasons`).
 """
 
 from __future__ import annotations
@@ -24,10 +24,11 @@ from ..detectors.hammerstein import HammersteinFit
 from ..quantify.hewang import Quantification, quantify
 from ..quantify.route import limit_cycle, size_valve
 from ..signal.cycle import Cycle, find_cycle
-from .combine import STICTION_CONFIDENCE, confidence
+from . import model as learned
 from .evidence import Findings, gather
+from .features import features
 from .quality import check_quality
-from .reasons import not_stiction, said
+from .reasons import not_stiction, size_text, stiction_head
 
 __all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
 
@@ -191,7 +192,11 @@ def analyze_details(
     op_c, pv_c = q.op, q.pv
     cycle = find_cycle(op_c, pv_c, integrating=integrating)
     found = gather(op_c, pv_c, cycle, integrating=integrating, ts=ts_)
-    conf = confidence(found.evidence)
+    model = learned.load()
+    x = features(found.evidence, found.results, cycle, op=op_c, pv=pv_c,
+                 integrating=integrating)
+    conf = model.probability(x)
+    parts = model.contributions(x)
     si_test = "si_pv" if integrating else "si_op"
     si = next(e.value for e in found.evidence if e.test == si_test)
     base: dict[str, Any] = {
@@ -203,8 +208,9 @@ def analyze_details(
         quant = quantify(op_c, pv_c, period=cycle.period or 0.0, ts=ts_, kp=kp_,
                          delay=delay_, integrating=integrating, k=k_, pv_noise=found.noise[1])
 
-    if conf < STICTION_CONFIDENCE:
-        verdict, reason = not_stiction(cycle, found.evidence, conf)
+    if conf < model.stiction_at:
+        verdict, reason = not_stiction(cycle, found.evidence, conf, parts,
+                                       model.no_stiction_at)
         return Details(Assessment(verdict, reason, warnings=tuple(warnings), **base),
                        op_c, pv_c, quant, cycle, found)
 
@@ -212,28 +218,24 @@ def analyze_details(
                       integrating=integrating, k=k_, pv_noise=found.noise[1],
                       fitted_valve=_fitted_valve(found), ellipse_band=_ellipse_band(found))
     warnings.extend(size.warnings)
-    head = f"stiction (confidence {conf:.2f}; {said(found.evidence, 1)})"
+    head = stiction_head(conf, found.evidence, parts, cycle)
     if size.fd_op is None:
-        return Details(Assessment(Verdict.STICTION, f"{head}; not sized: {size.method}",
+        return Details(Assessment(Verdict.STICTION, f"{head} Size: not sized, {size.method}.",
                                   multi_jump=size.multi_jump, warnings=tuple(warnings), **base),
                        op_c, pv_c, size.quant, cycle, found)
-    scale = 1.0 if span is None else span
-    unit = "of span" if span is not None else "in OP units (give op_range for fractions of span)"
-    fs_txt = "" if size.fs_op is None else f", fs {size.fs_op / scale:.4g}"
-    no_kp = "" if size.fs_op is not None or kp_ is not None else " (fs needs kp)"
+    scale, unit = (1.0, "OP units") if span is None else (span / 100.0, "% of span")
 
     def frac(x: float | None) -> float | None:
         return None if x is None or span is None else x / span
 
+    text = size_text(size.fd_op / scale, None if size.fs_op is None else size.fs_op / scale,
+                     unit, size.method, need_kp=size.fs_op is None and kp_ is None)
     return Details(Assessment(
-        Verdict.STICTION,
-        f"{head}; fd {size.fd_op / scale:.4g}{fs_txt} {unit}, {size.method}{no_kp}",
+        Verdict.STICTION, head + text,
         fd=frac(size.fd_op), fs=frac(size.fs_op), jump=frac(size.jump_op),
         fd_op=size.fd_op, fs_op=size.fs_op, cycles_used=size.cycles,
         multi_jump=size.multi_jump, warnings=tuple(warnings), **base), op_c, pv_c, size.quant,
         cycle, found)
-
-
 
 
 def _fitted_valve(found: Findings) -> tuple[float, float | None] | None:

@@ -1,4 +1,9 @@
-"""One confidence from the tests' votes: a weighted vote through a logistic link.
+"""The weighted vote: one confidence from the tests' votes through a logistic link.
+
+This was ``analyze``'s decision until the learned one (:mod:`.model`, issue 24) replaced it;
+it stays as the baseline the benchmarks compare the learned decision against
+(``python -m bench.train``, ``bench real_data``), and as a reading of the evidence that
+needs no training.
 
 ``confidence = 1 / (1 + exp(-(BIAS + sum FOR[g] [g votes +1] - sum AGAINST[g] [g votes -1])))``
 
@@ -26,7 +31,7 @@ from .._assessment import Evidence
 from . import weights as _weights
 
 __all__ = ["GROUPS", "NO_STICTION_CONFIDENCE", "STICTION_CONFIDENCE", "confidence",
-           "group_votes", "score"]
+           "confidence_of", "group_votes", "score"]
 
 STICTION_CONFIDENCE = 0.7
 NO_STICTION_CONFIDENCE = 0.3
@@ -49,8 +54,12 @@ def group_votes(tests: Sequence[str], votes: Sequence[int]) -> dict[str, int]:
 def score(evidence: Iterable[Evidence]) -> float:
     """The weighted vote (log-odds of stiction)."""
     ev = list(evidence)
+    return _score([e.test for e in ev], [e.vote for e in ev])
+
+
+def _score(tests: Sequence[str], votes: Sequence[int]) -> float:
     z = _weights.BIAS
-    for group, vote in group_votes([e.test for e in ev], [e.vote for e in ev]).items():
+    for group, vote in group_votes(tests, votes).items():
         if vote > 0:
             z += _weights.FOR.get(group, 0.0)
         elif vote < 0:
@@ -60,5 +69,13 @@ def score(evidence: Iterable[Evidence]) -> float:
 
 def confidence(evidence: Iterable[Evidence]) -> float:
     """Probability-like confidence in [0, 1] that the window shows stiction."""
-    z = score(evidence)
+    return _logistic(score(evidence))
+
+
+def confidence_of(tests: Sequence[str], votes: Sequence[int]) -> float:
+    """:func:`confidence` from the tests' names and votes alone."""
+    return _logistic(_score(tests, votes))
+
+
+def _logistic(z: float) -> float:
     return 1.0 / (1.0 + math.exp(-z)) if z > -700 else 0.0

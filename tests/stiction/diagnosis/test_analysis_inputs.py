@@ -221,9 +221,12 @@ def test_oscillation_too_fast_for_its_shape() -> None:
     """Too fast to see a triangle: the shape tests abstain and say why; the fast-cycle test
     decides from the OP-PV lag: PV following OP is a valve that follows (not stiction),
     PV a quarter cycle behind a steady cycle is the sticky valve's signature (the
-    Tennessee Eastman IDV 14 reactor valve, logged every 180 s)."""
+    Tennessee Eastman IDV 14 reactor valve, logged every 180 s). The verdict is the learned
+    decision's: in the corpus most cycles that fast were sticky valves even with PV
+    following OP (docs/accuracy.md, the limits), so the test's vote is evidence, not a veto;
+    the reason tells the engineer to sample faster."""
     follows = _fast(0.0)
-    assert follows.verdict != Verdict.STICTION, follows
+    assert "too fast to see its shape: sample faster" in follows.reason
     votes = {e.test: e for e in follows.evidence}
     assert votes["si_op"].vote == 0
     assert "too fast to see its shape" in votes["si_op"].note
@@ -239,7 +242,7 @@ def test_fs_needs_kp(loop: tuple[np.ndarray, np.ndarray]) -> None:
     assert a.fd is not None
     assert a.fs is None
     assert a.fs_op is None
-    assert "fs needs kp" in a.reason
+    assert "fs needs the process gain kp" in a.reason
 
 
 def test_op_range_scales_fractions(loop: tuple[np.ndarray, np.ndarray]) -> None:
@@ -260,7 +263,7 @@ def test_without_op_range_sizes_are_in_op_units(loop: tuple[np.ndarray, np.ndarr
     assert (b.fd, b.fs, b.jump) == (None, None, None)
     assert a.fd_op is not None
     assert b.fd_op == pytest.approx(2.0 * a.fd_op, rel=1e-3)
-    assert "in OP units (give op_range for fractions of span)" in b.reason
+    assert "OP units" in b.reason and "Give op_range for sizes in % of span" in b.reason
 
 
 def test_to_dict_has_exactly_the_fields(loop: tuple[np.ndarray, np.ndarray]) -> None:
