@@ -21,6 +21,7 @@ __all__ = [
     "GatewaySettings",
     "LoopConfig",
     "MetricsSettings",
+    "PlantSettings",
     "PointConfig",
     "ResultServerSettings",
     "default_timeout",
@@ -76,6 +77,16 @@ class ResultServerSettings:
 
 
 @dataclasses.dataclass(frozen=True)
+class PlantSettings:
+    """The plant-wide step after each analysis round (docs/configuration.md, ``plant``)."""
+
+    enabled: bool = True  # run stiction.plant over the loops that share a poll interval
+    # samples per signal the plant analysis sees: longer windows are averaged down (bounds
+    # its memory and time; the per-loop analysis always sees the whole window)
+    max_samples: int = 1024
+
+
+@dataclasses.dataclass(frozen=True)
 class DeviceConfig:
     """One device (one connection). ``options`` is the protocol plugin's own frozen
     dataclass (e.g. :class:`gateway.inputs.modbus.config.ModbusDeviceOptions`)."""
@@ -126,6 +137,7 @@ class Config:
     modbus_server: ResultServerSettings = ResultServerSettings()
     # loops whose result_address the loader assigned (config/addresses.py), in config order
     assigned: tuple[str, ...] = ()
+    plant: PlantSettings = PlantSettings()
 
     def device(self, name: str) -> DeviceConfig:
         for dev in self.devices:
