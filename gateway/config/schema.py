@@ -18,8 +18,9 @@ import reprlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["MISSING", "Problems", "Section", "boolean", "choice", "entries", "integer", "label_value",
-           "listen_address", "mapping", "nonempty_list", "number", "number_pair", "string"]
+__all__ = ["MISSING", "Problems", "Section", "boolean", "choice", "entries", "integer",
+           "label_value", "listen_address", "mapping", "nonempty_list", "number", "number_pair",
+           "string"]
 
 T = TypeVar("T")
 

@@ -205,7 +205,7 @@ class PlantTracker:
                               if k not in self.groups and k not in taken)
                 events.append(f"plant group {number} appeared: period {period:.0f} s, "
                               f"source {_src(source)}, {len(loops)} loops: "
-                              f"{_names(loops)}")
+                              f"{_listed(loops)}")
             taken.add(number)
             out.append(PlantGroup(number, period, source, tuple(loops), reason))
         for g in sorted(free.values(), key=lambda g: g.number):
@@ -220,10 +220,10 @@ class PlantTracker:
             for name, role in pa.roles.items():
                 if role.group is None or role.role is None:
                     continue
-                g = pa.group(role.group)
-                number = by_key.get((g.period_s, g.loops))
-                if number is not None:
-                    roles[name] = (number, role.role)
+                sg = pa.group(role.group)
+                found_number = by_key.get((sg.period_s, sg.loops))
+                if found_number is not None:
+                    roles[name] = (found_number, role.role)
         return PlantView(tuple(out), roles), events
 
 
@@ -231,6 +231,6 @@ def _src(source: str | None) -> str:
     return "none among the loops (from outside)" if source is None else source
 
 
-def _names(loops: Sequence[str], most: int = 8) -> str:
+def _listed(loops: Sequence[str], most: int = 8) -> str:
     shown = ", ".join(loops[:most])
     return shown + (f" and {len(loops) - most} more" if len(loops) > most else "")

@@ -130,7 +130,7 @@ class StoreSnapshot:
     latest_op: NDArray[np.float64]
     latest_pv: NDArray[np.float64]
     stale: NDArray[np.bool_]
-    plant: PlantView = PlantView()
+    plant: PlantView = dataclasses.field(default_factory=PlantView)
 
     def verdict_name(self, i: int) -> str:
         return verdict_name(self.results[i], bool(self.stale[i]))

@@ -193,7 +193,7 @@ class AnalysisScheduler:
                 if held is not None:  # published after the plant step
                     held[index] = (assessment, t, fill, samples)
                 else:
-                    publish(store, index, assessment, t, fill, samples)
+                    publish(store, index, assessment, t=t, fill=fill, samples=samples)
                 if self.on_duration is not None:
                     self.on_duration(dur)
             done += len(results)
@@ -209,7 +209,8 @@ class AnalysisScheduler:
         if held is not None:
             applied = await self._plant_step(store, groups, held)
             for index, (assessment, t, fill, samples) in held.items():
-                publish(store, index, applied.get(index, assessment), t, fill, samples)
+                publish(store, index, applied.get(index, assessment), t=t, fill=fill,
+                        samples=samples)
         elif self.tracker.groups:  # turned off by a reload: the groups end
             self._set_plant(store, [])
         self.rounds += 1
@@ -251,8 +252,8 @@ class AnalysisScheduler:
         store.set_plant(view)
 
 
-def publish(store: ResultStore, index: int, assessment: Assessment, t: float, fill: float,
-            samples: int) -> None:
+def publish(store: ResultStore, index: int, assessment: Assessment, *, t: float,
+            fill: float, samples: int) -> None:
     """One loop's result into the store, its verdict change logged."""
     before = store.results[index]
     store.set_result(index, assessment, t=t, window_fill=fill, samples=samples)
