@@ -1,12 +1,13 @@
 """The plant-wide step of an analysis round: windows in, groups and roles out (no IO).
 
-After each round the loops that share a poll interval (their windows share a time base)
-are analysed together by :func:`stiction.plant.analyze_plant` (docs/architecture.md):
+After each round the loops whose windows share a time base (the same poll interval and the
+same window length: the same span of process time, sample for sample) are analysed
+together by :func:`stiction.plant.analyze_plant` (docs/architecture.md):
 
-1. :func:`plant_jobs` copies every loop's window of one poll interval into one
-   :class:`PlantJob`: samples that are not GOOD as NaN (gaps), aligned at the newest sample,
-   on the window length most of those loops have (a loop with a shorter window is mostly
-   NaN there and takes no part), averaged down to at most ``max_samples`` samples.
+1. :func:`plant_jobs` copies the windows of every such set of loops into one
+   :class:`PlantJob`: samples that are not GOOD as NaN (gaps), aligned at the newest sample
+   (devices polled at one interval are read within one interval of each other), averaged
+   down to at most ``max_samples`` samples.
 2. :func:`analyze_plant_job` is the worker's entry (picklable in, picklable out).
 3. :class:`PlantTracker` numbers the groups of all jobs for the outputs: a group keeps its
    number from round to round while it shares loops with the one before (new groups take the
@@ -18,7 +19,6 @@ are analysed together by :func:`stiction.plant.analyze_plant` (docs/architecture
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 import math
 from collections.abc import Mapping, Sequence
@@ -58,14 +58,6 @@ class PlantJob:
     processes: Mapping[str, str]
 
 
-def _window_length(groups: Sequence[LoopGroup]) -> int:
-    """The window length (samples) most loops of ``groups`` have (the longer on a tie)."""
-    counts: collections.Counter[int] = collections.Counter()
-    for g in groups:
-        counts[g.bank.size] += len(g.configs)
-    return max(counts, key=lambda n: (counts[n], n))
-
-
 def _averaged(x: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
     """Rows of ``x`` averaged over blocks of ``factor`` samples (the oldest samples that
     fill no whole block are dropped; a block with a gap is a gap)."""
@@ -78,16 +70,15 @@ def _averaged(x: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
 
 def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment], *,
                max_samples: int) -> list[PlantJob]:
-    """One job per poll interval with at least two loops assessed (``assessments``: store
-    row -> this round's assessment), in order of poll interval."""
-    by_ts: dict[float, list[LoopGroup]] = {}
+    """One job per time base (poll interval, window length) with at least two loops
+    assessed (``assessments``: store row -> this round's assessment), in that order."""
+    by_base: dict[tuple[float, int], list[LoopGroup]] = {}
     for g in groups:
         if g.bank.count > 0 and any(int(r) in assessments for r in g.rows):
-            by_ts.setdefault(g.ts, []).append(g)
+            by_base.setdefault((g.ts, g.bank.size), []).append(g)
     jobs = []
-    for ts in sorted(by_ts):
-        members = by_ts[ts]
-        length = _window_length(members)
+    for ts, length in sorted(by_base):
+        members = by_base[ts, length]
         factor = max(1, math.ceil(length / max_samples))
         width = length // factor
         rows: list[int] = []

@@ -151,24 +151,25 @@ def test_groups_keep_their_number_and_each_change_is_one_line() -> None:
     assert t.update([(_pa((155.0, "B", ("B", "A")), (90.0, "Q", ("Q", "R"))), ())])[1] == []
 
 
-def test_a_job_holds_one_poll_interval_on_the_common_window_averaged_down() -> None:
+def test_a_job_holds_one_time_base_averaged_down() -> None:
     rng = np.random.default_rng(1)
     sig = {f"A{i}": (rng.normal(size=3000), rng.normal(size=3000)) for i in range(3)}
     a = _group(sig, 1.0, {}, "p1")
-    b = _group({"B0": sig["A0"]}, 1.0, {}, "p2", first_row=3, size=1000)  # shorter window
-    c = _group({"C0": sig["A1"], "C1": sig["A2"]}, 5.0, {}, "p3", first_row=4)
+    b = _group({"B0": sig["A0"]}, 1.0, {}, "p2", first_row=3)  # another device, same base
     b.bank.quality[-10:, 0] = Quality.BAD  # the newest 10 samples of B0: gaps
+    c = _group({"C0": sig["A1"], "C1": sig["A2"]}, 5.0, {}, "p3", first_row=4)
+    d = _group({"D0": sig["A1"], "D1": sig["A2"]}, 1.0, {}, "p4", first_row=6, size=1000)
     ok = Assessment(Verdict.NOT_OSCILLATING, "")
-    jobs = plant_jobs([a, b, c], dict.fromkeys(range(6), ok), max_samples=1000)
-    assert [(j.ts, j.names) for j in jobs] == [(3.0, ("A0", "A1", "A2", "B0")),
+    jobs = plant_jobs([a, b, c, d], dict.fromkeys(range(8), ok), max_samples=1000)
+    assert [(j.ts, j.names) for j in jobs] == [(1.0, ("D0", "D1")),
+                                               (3.0, ("A0", "A1", "A2", "B0")),
                                                (15.0, ("C0", "C1"))]
-    j = jobs[0]
+    j = jobs[1]
     assert j.op.shape == (4, 1000) and j.op.dtype == np.float32
     np.testing.assert_allclose(j.op[0], sig["A0"][0].reshape(-1, 3).mean(axis=1), atol=1e-6)
-    assert np.isnan(j.op[3, :-334]).all()  # B0 has a third of the window ...
-    assert np.isnan(j.op[3, -4:]).all() and np.isfinite(j.op[3, -330:-4]).all()  # ... gaps
-    assert jobs[0].rows == (0, 1, 2, 3) and jobs[1].rows == (4, 5)
-    # loops not assessed this round take no part; a poll interval with one loop has no job
+    assert np.isnan(j.op[3, -4:]).all() and np.isfinite(j.op[3, :-4]).all()  # gaps: NaN
+    assert j.rows == (0, 1, 2, 3) and jobs[2].rows == (4, 5)
+    # loops not assessed this round take no part; a time base with one loop has no job
     assert plant_jobs([a, b], {0: ok, 3: ok}, max_samples=5000)[0].names == ("A0", "B0")
     assert plant_jobs([a], {0: ok}, max_samples=5000) == []
 
