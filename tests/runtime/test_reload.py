@@ -126,14 +126,16 @@ def test_a_running_gateway_reloads_and_refuses_bad_files(
             out["reconnects"] = gw.pollers[1].reconnects
 
     asyncio.run(asyncio.wait_for(go(), 50))
-    assert out["seq_after"]["A"] == out["seq_before"]["A"]  # A's result carried over
+    # A's result carried over (not reset; a round may have ended while the reload ran)
+    assert out["seq_after"]["A"] is not None
+    assert out["seq_after"]["A"] >= out["seq_before"]["A"] >= 2
     assert out["seq_after"]["C"] is None and out["seq_after"]["D"] is None
     assert "B" not in out["seq_after"]
     # B vanished from the metrics and the registers
     assert out["metrics_before"] == {"A": 1.0, "B": 1.0, "C": 1.0, "D": None, "E": 1.0}
     assert out["metrics_after"]["B"] is None and out["metrics_after"]["A"] == 1.0
     regs = out["registers"]
-    assert regs[0] == 8 and regs[1] == out["seq_before"]["A"]  # A: warming_up, seq
+    assert regs[0] == 8 and regs[1] == out["seq_after"]["A"]  # A: warming_up, seq
     assert regs[20:40] == [0] * 20  # B's block is empty
     assert regs[40] == 0 and regs[60] == 0  # C and D: no result yet
     # plc's points changed: a new source (connection); plc2 kept its connection
