@@ -211,12 +211,13 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
                 (sim, gateway),
             )
             wait_for(
-                "the plant's group with its source and members, seen by Prometheus",
-                lambda: prom.query('stiction_plant_group_loops{source="U2.FIC101"} >= 3 and '
-                                   'on (instance) count by (instance) '
-                                   '(stiction_loop_plant_role{role="follower"} == 1) >= 2'
+                "a plant-wide group and its members, seen by Prometheus",
+                # (any group: whether U2.FIC101 is named its source depends on its own
+                # verdict in the short window, which may waver; test_plant_e2e checks that)
+                lambda: prom.query("stiction_plant_group_loops >= 2 and on (instance) "
+                                   'count by (instance) (stiction_loop_plant_role == 1) >= 2'
                                    )["data"]["result"],
-                60,
+                90,
                 logs,
                 (sim, gateway),
             )
