@@ -616,7 +616,7 @@ def test_a_plc_down_from_the_start_reads_nan_not_zeros() -> None:
 
     asyncio.run(asyncio.wait_for(go(), 50))
     block = out["block"]
-    assert block["code"] == 6
+    assert block["code"] == 9  # device_down: stale, its device being down
     for key in ("stiction_index", "fd_percent", "fs_percent", "period_s", "jump_percent",
                 "window_fill", "confidence"):
         assert math.isnan(block[key]), (key, block[key])

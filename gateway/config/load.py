@@ -39,6 +39,7 @@ from .model import (
     ResultServerSettings,
     default_timeout,
 )
+from .overlaps import check_overlaps
 from .plugins import input_names, input_plugin
 from .schema import MISSING, Problems, Section
 from .tags import tag_entries, tag_tables
@@ -126,6 +127,7 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
         if loop is not None:
             loops.append(loop)
     top.done()
+    check_overlaps(sections, [d for d in devices.values() if d is not None], loops)
     assigned: list[str] = []
     if one_gateway:  # several gateways: each assigns its own blocks
         loops, assigned, full = assign_result_addresses(loops, blocks)
@@ -195,6 +197,7 @@ def _parse_point(sec: Section, device: DeviceConfig | None,
     scale = sec.opt("scale", s.number(), 1.0)
     offset = sec.opt("offset", s.number(), 0.0)
     valid = sec.opt("range", s.number_pair, None)
+    shared = sec.opt("shared", s.flag, False)
     if scale == 0.0:
         sec.error("scale", "must not be 0")
         scale = MISSING
@@ -206,9 +209,9 @@ def _parse_point(sec: Section, device: DeviceConfig | None,
         for key in sec.raw:
             sec.raw_value(key)
     sec.done()
-    if MISSING in (scale, offset, address, valid):
+    if MISSING in (scale, offset, address, valid, shared):
         return None
-    return PointConfig(address, scale, offset, valid)
+    return PointConfig(address, scale, offset, valid, shared)
 
 
 def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
@@ -254,7 +257,7 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     return LoopConfig(name=name, device=device_name, op=op, pv=pv,
                       result_address=result_address, process=process, kp=kp,
                       delay_s=delay, window_s=window, op_range=op_range,
-                      result_unit_id=result_unit_id)
+                      result_unit_id=result_unit_id, origin=sec.origin)
 
 
 def _kp(value: Any) -> float | None:

@@ -107,6 +107,9 @@ class PointConfig:
     scale: float = 1.0
     offset: float = 0.0
     range: tuple[float, float] | None = None  # plausible engineering values; outside -> BAD
+    # may read the same registers as another point that says so too (a split-range PV);
+    # not in repr: it changes nothing of the samples (window signatures stay)
+    shared: bool = dataclasses.field(default=False, repr=False)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,6 +128,9 @@ class LoopConfig:
     # it in). Not in repr: like result_address it does not change what the loop's
     # assessment means (state.result_signature), and state files stay compatible.
     result_unit_id: int | None = dataclasses.field(default=None, repr=False)
+    # where the loop is listed, for messages about it: "loops.csv: line 4" for a tag-list
+    # row, "" for the YAML. Neither in repr nor compared: moving a row keeps its window.
+    origin: str = dataclasses.field(default="", repr=False, compare=False)
 
 
 @dataclasses.dataclass(frozen=True)

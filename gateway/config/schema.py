@@ -18,7 +18,8 @@ import reprlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["MISSING", "Problems", "Section", "boolean", "choice", "entries", "integer",
+__all__ = ["MISSING", "Problems", "Section", "boolean", "choice", "entries", "flag",
+           "integer",
            "label_value", "listen_address", "mapping", "nonempty_list", "number", "number_pair",
            "string"]
 
@@ -77,6 +78,7 @@ class Section:
         self.valid = isinstance(raw, Mapping)
         self.raw: Mapping[str, Any] = raw if isinstance(raw, Mapping) else {}
         self._seen: dict[str, None] = {}  # keys read, in reading order
+        self.origin = ""  # where the mapping was listed, if not the YAML ("loops.csv: line 4")
         if raw is not None and not self.valid:
             name = prefix.rstrip(".") or None
             problems.add(where, name, f"must be a mapping, was {_type_name(raw)}")
@@ -145,6 +147,16 @@ def boolean(value: Any) -> bool:
     if not isinstance(value, bool):
         raise TypeError("must be true or false")
     return value
+
+
+def flag(value: Any) -> bool:
+    """true or false (a tag list's cell: true/false, yes/no, 1/0, any case)."""
+    if isinstance(value, bool):
+        return value
+    words = {"true": True, "yes": True, "1": True, "false": False, "no": False, "0": False}
+    if isinstance(value, str | int) and str(value).strip().lower() in words:
+        return words[str(value).strip().lower()]
+    raise TypeError("must be true or false")
 
 
 def integer(lo: int | None = None, hi: int | None = None) -> Callable[[Any], int]:

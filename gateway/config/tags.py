@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import os
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -37,6 +38,10 @@ COLUMNS: dict[str, str] = {
     "table": "Modbus table of OP and PV: holding (default) or input",
     "op_table": "OP's table, if not `table`",
     "pv_table": "PV's table, if not `table`",
+    "shared": "true: OP and PV may read registers another loop's point reads too, if it "
+              "says so as well (default false)",
+    "op_shared": "OP's shared, if not `shared`",
+    "pv_shared": "PV's shared, if not `shared` (a split-range pair's common PV)",
     "op_scale": "OP = raw * op_scale + op_offset (default 1)",
     "op_offset": "(default 0)",
     "pv_scale": "PV = raw * pv_scale + pv_offset (default 1)",
@@ -57,8 +62,10 @@ _TARGETS: dict[str, tuple[str | None, str]] = {
     "op": ("op", ""), "pv": ("pv", ""), "op_type": ("op", "type"), "pv_type": ("pv", "type"),
     "op_table": ("op", "table"), "pv_table": ("pv", "table"), "op_scale": ("op", "scale"),
     "op_offset": ("op", "offset"), "pv_scale": ("pv", "scale"), "pv_offset": ("pv", "offset"),
+    "op_shared": ("op", "shared"), "pv_shared": ("pv", "shared"),
 }
-_SHARED = {"type": ("op_type", "pv_type"), "table": ("op_table", "pv_table")}
+_SHARED = {"type": ("op_type", "pv_type"), "table": ("op_table", "pv_table"),
+           "shared": ("op_shared", "pv_shared")}
 
 
 @dataclasses.dataclass
@@ -251,4 +258,6 @@ def tag_entries(problems: Problems, tables: list[TagTable],
             name = row.cells.get("name")
             where = f"line {row.line}" + (f": loop {name}" if name else "")
             mapping = loop_mapping(row, protocols.get(row.cells.get("device", "")))
-            yield i, name, Section(_RowProblems(problems, table, row), where, mapping)
+            section = Section(_RowProblems(problems, table, row), where, mapping)
+            section.origin = f"{os.path.basename(table.source)}: line {row.line}"
+            yield i, name, section

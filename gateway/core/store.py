@@ -48,6 +48,8 @@ class ResultStore:
         self.latest_op: NDArray[np.float64] = np.full(n, np.nan)
         self.latest_pv: NDArray[np.float64] = np.full(n, np.nan)
         self.stale = np.zeros(n, dtype=bool)
+        # the loop's device is down: a stale loop of a down device is ``device_down``
+        self.down = np.zeros(n, dtype=bool)
         # per loop, a sequence number already published (by an earlier run or config): the
         # next assessment is numbered above it, so the number never goes backwards
         self.seq_floor = np.zeros(n, dtype=np.int64)
@@ -87,16 +89,19 @@ class ResultStore:
         res = self.results[i]
         return max(res.seq if res is not None else 0, int(self.seq_floor[i]))
 
-    def set_stale(self, rows: NDArray[np.intp], stale: NDArray[np.bool_] | bool) -> None:
-        """Set the stale flag of loops ``rows``; subscribers hear of those that changed."""
+    def set_stale(self, rows: NDArray[np.intp], stale: NDArray[np.bool_] | bool,
+                  down: bool = False) -> None:
+        """Set the stale flag of loops ``rows`` and whether their device is ``down``;
+        subscribers hear of those whose verdict name changed."""
         new = np.broadcast_to(np.asarray(stale, dtype=bool), rows.shape)
-        changed = rows[self.stale[rows] != new]
+        changed = rows[(self.stale[rows] != new) | (new & (self.down[rows] != down))]
         self.stale[rows] = new
+        self.down[rows] = down
         for i in changed:
             self._notify(int(i))
 
     def verdict_name(self, i: int) -> str:
-        return verdict_name(self.results[i], bool(self.stale[i]))
+        return verdict_name(self.results[i], bool(self.stale[i]), bool(self.down[i]))
 
     def set_plant(self, view: PlantView) -> None:
         """Replace the plant view; subscribers hear of the loops whose group, role or
@@ -118,7 +123,8 @@ class ResultStore:
         """An immutable copy of everything a reader needs (cheap: the results are shared,
         the arrays copied)."""
         return StoreSnapshot(self.loops, tuple(self.results), self.latest_op.copy(),
-                             self.latest_pv.copy(), self.stale.copy(), self.plant)
+                             self.latest_pv.copy(), self.stale.copy(), self.down.copy(),
+                             self.plant)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,14 +136,16 @@ class StoreSnapshot:
     latest_op: NDArray[np.float64]
     latest_pv: NDArray[np.float64]
     stale: NDArray[np.bool_]
+    down: NDArray[np.bool_]
     plant: PlantView = dataclasses.field(default_factory=PlantView)
 
     def verdict_name(self, i: int) -> str:
-        return verdict_name(self.results[i], bool(self.stale[i]))
+        return verdict_name(self.results[i], bool(self.stale[i]), bool(self.down[i]))
 
 
-def verdict_name(result: LoopResult | None, stale: bool = False) -> str:
-    """``stale``, ``none`` (no assessment yet) or the assessment's verdict."""
+def verdict_name(result: LoopResult | None, stale: bool = False, down: bool = False) -> str:
+    """``device_down`` (stale because its device is down: the device's alert says why, not
+    one per loop), ``stale``, ``none`` (no assessment yet) or the assessment's verdict."""
     if stale:
-        return "stale"
+        return "device_down" if down else "stale"
     return "none" if result is None else str(result.assessment.verdict)

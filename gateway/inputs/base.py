@@ -64,5 +64,5 @@ class PointStatus(Protocol):
 
     def point_status(self) -> list[str]:
         """One text per point, in point order: '' when there is nothing to say, else the
-        protocol's word for the failure (e.g. ``holding 100+4: exception code 2``,
-        ``BadNodeIdUnknown``)."""
+        protocol's words for the failure (e.g. ``holding 100+4: illegal data address
+        (exception 2): ...``, ``BadNodeIdUnknown``)."""

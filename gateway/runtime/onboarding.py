@@ -118,8 +118,9 @@ def _probe(args: argparse.Namespace) -> int:
         for err in ([dev.error] if dev.error is not None else list(dev.errors)):
             print(f"stiction-gateway: {err}", file=sys.stderr)
     good = sum(1 for d in results for r in d.rows if r.quality == Quality.GOOD)
-    print(f"{good} of {2 * len(select_loops(config, args.loops))} point(s) good",
-          file=sys.stderr)
+    odd = sum(1 for d in results for r in d.rows if r.shown_quality == "IMPLAUSIBLE")
+    print(f"{good} of {2 * len(select_loops(config, args.loops))} point(s) good"
+          + (f", {odd} implausible (see status)" if odd else ""), file=sys.stderr)
     return 0 if all(d.ok for d in results) else 1
 
 

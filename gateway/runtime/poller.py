@@ -35,7 +35,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..config.model import DeviceConfig
-from ..core.points import PointSpec, PointTable, Quality
+from ..core.points import Implausible, PointSpec, PointTable, Quality, explain
 from ..core.store import ResultStore
 from ..core.ticks import (
     Backoff,
@@ -53,11 +53,13 @@ from ..errors import DeviceError
 from ..inputs.base import ReadResult, Source
 from ..outputs.prometheus import GatewayMetrics
 
-__all__ = ["BACKOFF_BASE_S", "Clocks", "DevicePoller"]
+__all__ = ["BACKOFF_BASE_S", "Clocks", "DevicePoller", "all_refused"]
 
 log = logging.getLogger("gateway.poller")
 
 BACKOFF_BASE_S = 0.5
+IMPLAUSIBLE_EXPLAINED = 3
+"""Points whose implausible value a log line explains (the others are only named)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -224,9 +226,15 @@ class DevicePoller:
             await self._disconnect()
             self._gap(t_proc)
             return
+        refused = all_refused(result)
+        if refused is not None:  # it answers, but serves nothing: down, with the reason
+            self.report.refused(result.errors)
+            self._failed(refused, "read")
+            self._gap(t_proc)
+            return
         self._answered(result, clocks.perf() - t0)
-        values, quality = self.table.engineering(result.values, result.quality)
-        self._note_bad(quality)
+        values, quality, causes = self.table.judge(result.values, result.quality)
+        self.report.bad_points(causes, result.values, self.table)
         self._append(t_proc, values, quality)
 
     def _failed(self, exc: DeviceError | TimeoutError, what: str) -> None:
@@ -235,8 +243,9 @@ class DevicePoller:
             name, "timeout", f"{what} took over {self.guard_s:g} s")
         self.report.failed(err)
         if self.link.failed(err.kind, self._mono()()):
-            log.warning("device %s: down (%s): %s; retrying with backoff up to %g s",
-                        name, err.kind, err, self.link.backoff.cap_for(err.kind))
+            again = ("polling on; its loops are device_down" if err.kind == "exception" else
+                     f"retrying with backoff up to {self.link.backoff.cap_for(err.kind):g} s")
+            log.warning("device %s: down (%s): %s; %s", name, err.reason, err, again)
 
     def _answered(self, result: ReadResult, seconds: float) -> None:
         self.report.answered(result, seconds)
@@ -247,15 +256,13 @@ class DevicePoller:
             self.report.up()
         self.good_polls += 1
 
-    def _note_bad(self, quality: np.ndarray) -> None:
-        self.report.bad_points(np.flatnonzero(quality == Quality.BAD).tolist(), self.table)
-
     def _gap(self, t_proc: float) -> None:
         self._append(t_proc, *self.table.gap())
 
     def _append(self, t_proc: float, values: np.ndarray, quality: np.ndarray) -> None:
         fresh = record(self.groups, t_proc, values, quality, self.store)
-        self.store.set_stale(self.loops, self.stale.update(self.ticks, fresh))
+        self.store.set_stale(self.loops, self.stale.update(self.ticks, fresh),
+                             down=self.link.up is False)
 
 
 class DeviceReport:
@@ -301,16 +308,28 @@ class DeviceReport:
             log.warning("device %s: polls keep their schedule again", self.name)
 
     def failed(self, err: DeviceError) -> None:
+        """The device is down (again): ``stiction_device_up`` 0, and why, in the words of
+        the log line (``stiction_device_down_reason``)."""
         if self.metrics is not None:
             self.metrics.poll_errors.labels(device=self.name, kind=err.kind).inc()
             self.metrics.device_up.labels(device=self.name).set(0)
+            self.metrics.set_down_reason(self.name, err.reason)
 
     def up(self) -> None:
         if self.metrics is not None:
             self.metrics.device_up.labels(device=self.name).set(1)
+            self.metrics.set_down_reason(self.name, None)
+
+    def refused(self, errors: Sequence[DeviceError]) -> None:
+        """Count the requests the device refused, by the refusal's words."""
+        if self.metrics is not None:
+            for err in errors:
+                if err.kind == "exception":
+                    self.metrics.count_refused(self.name, err.reason)
 
     def answered(self, result: ReadResult, seconds: float) -> None:
         m = self.metrics
+        self.refused(result.errors)
         if m is not None:
             m.poll_duration.labels(device=self.name).observe(seconds)
             m.poll_requests.labels(device=self.name).inc(result.requests)
@@ -323,15 +342,47 @@ class DeviceReport:
         for key in went:
             log.warning("device %s: %s answering again", self.name, key)
 
-    def bad_points(self, bad: list[int], table: PointTable) -> None:
+    def bad_points(self, causes: np.ndarray, raw: np.ndarray, table: PointTable) -> None:
+        """One line when the set of points with implausible values (``causes``, one
+        :class:`~gateway.core.points.Implausible` per point) changes: the points, and for
+        the first few the value and its likely cause, in ``probe``'s words."""
+        bad = np.flatnonzero(causes != Implausible.NONE).tolist()
         came, went = self.bad.update(bad)
         if not came and not went:
             return
-        if self.bad.members:
-            log.warning("device %s: bad values (NaN, inf, subnormal or out of range) at %s",
-                        self.name, table.names(self.bad.members))  # type: ignore[arg-type]
-        else:
+        if not bad:
             log.warning("device %s: values plausible again", self.name)
+            return
+        why = "; ".join(f"{_point_name(table.points[i])}: "
+                        f"{explain(table.points[i], float(raw[i]), int(causes[i]))}"
+                        for i in bad[:IMPLAUSIBLE_EXPLAINED])
+        more = len(bad) - IMPLAUSIBLE_EXPLAINED
+        log.warning("device %s: implausible values at %s (bad samples until they are "
+                    "plausible) - %s%s", self.name, table.names(bad), why,
+                    f"; and {more} more point(s)" if more > 0 else "")
+
+
+def all_refused(result: ReadResult) -> DeviceError | None:
+    """A read the device answered by refusing every point (each request a protocol
+    exception, e.g. Modbus exception 10 for a unit id it does not serve) as one
+    DeviceError of kind ``exception``: the device is down for the gateway, with the
+    refusal's reason; None for any other read."""
+    errors = result.errors
+    if not errors or any(e.kind != "exception" for e in errors) \
+            or not (result.quality == Quality.NO_COMM).all():
+        return None
+    first = errors[0]
+    reasons = {e.reason for e in errors}
+    reason = first.reason if len(reasons) == 1 else DeviceError.REASONS["exception"]
+    text = str(first).removeprefix(f"device {first.device}: ")
+    if len(errors) > 1:
+        text = f"all {len(errors)} requests refused, the first: {text}"
+    return DeviceError(first.device, "exception", text, reason=reason)
+
+
+def _point_name(p: PointSpec) -> str:
+    """``FIC101 op (loops.csv: line 4)``."""
+    return f"{p.loop} {p.role}" + (f" ({p.origin})" if p.origin else "")
 
 
 def _block_key(err: DeviceError) -> str:

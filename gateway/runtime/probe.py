@@ -3,10 +3,13 @@
 Per device (all at once): the source its protocol plugin builds for the loops asked for
 (the same requests, decoding and word order as the poller's), one connect, one read,
 close; then the core's :class:`~gateway.core.points.PointTable` turns raw values into
-engineering values and qualities (scale, offset, range, NaN, subnormal). Nothing is
-written anywhere. A device that cannot be read is a :class:`~gateway.errors.DeviceError`
-naming the device; a point that came back bad says why (the Modbus request and its
-exception code, the OPC UA status such as ``BadNodeIdUnknown``).
+engineering values and judges them (:meth:`~gateway.core.points.PointTable.judge`: scale,
+offset, range, op_range, NaN, subnormal, magnitude): an implausible value is shown as
+``IMPLAUSIBLE`` with its likely cause (:func:`~gateway.core.points.explain`: an address off
+by one, the word order), the words the poller logs. Nothing is written anywhere. A device
+that cannot be read is a :class:`~gateway.errors.DeviceError` naming the device; a point
+that came back bad says why (the Modbus request and its exception in words with the fix,
+the OPC UA status such as ``BadNodeIdUnknown``).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import math
 from collections.abc import Sequence
 
 from ..config import Config, DeviceConfig, LoopConfig
-from ..core.points import PointTable, Quality
+from ..core.points import Implausible, PointTable, Quality, explain
 from ..errors import ConfigError, DeviceError
 from ..inputs.base import PointStatus, Source
 from .reload import device_points, plugin_source
@@ -38,6 +41,12 @@ class ProbeRow:
     value: float
     quality: Quality
     status: str = ""
+    cause: Implausible = Implausible.NONE  # why the value read is implausible
+
+    @property
+    def shown_quality(self) -> str:
+        """``IMPLAUSIBLE`` for a value read but implausible, else the quality's name."""
+        return "IMPLAUSIBLE" if self.cause != Implausible.NONE else self.quality.name
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,11 +102,13 @@ async def _probe_device(device: DeviceConfig, loops: list[LoopConfig],
             device.name, "timeout", f"no answer within {limit:g} s"))
     finally:
         await source.close()
-    values, quality = PointTable(points).engineering(result.values, result.quality)
+    values, quality, causes = PointTable(points).judge(result.values, result.quality)
     status = source.point_status() if isinstance(source, PointStatus) else []
     rows = tuple(ProbeRow(p.loop, p.role, device.name, str(p.address), float(result.values[i]),
                           float(values[i]), Quality(int(quality[i])),
-                          status[i] if i < len(status) else "")
+                          (status[i] if i < len(status) else "")
+                          or explain(p, float(result.values[i]), int(causes[i])),
+                          Implausible(int(causes[i])))
                  for i, p in enumerate(points))
     return DeviceProbe(device.name, rows, errors=result.errors)
 
@@ -112,11 +123,8 @@ def format_probe(results: Sequence[DeviceProbe]) -> str:
     cells = [head]
     for dev in results:
         for r in dev.rows:
-            status = r.status
-            if not status and r.quality == Quality.BAD:
-                status = "implausible (NaN, inf, subnormal or outside range)"
             cells.append([r.loop, r.role, r.device, r.address, _num(r.raw), _num(r.value),
-                          r.quality.name, status])
+                          r.shown_quality, r.status])
     widths = [max(len(c[i]) for c in cells) for i in range(len(head))]
     return "".join("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip()
                    + "\n" for row in cells)

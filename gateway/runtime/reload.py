@@ -144,8 +144,10 @@ class Runtime:
 
 
 def device_points(loops: Sequence[LoopConfig]) -> list[PointSpec]:
-    """A device's point list: each loop's OP then PV, in loop order."""
-    return [PointSpec(lp.name, role, p.address, p.scale, p.offset, p.range)
+    """A device's point list: each loop's OP then PV, in loop order (an OP's span is its
+    loop's op_range: core.points judges it by that too)."""
+    return [PointSpec(lp.name, role, p.address, p.scale, p.offset, p.range,
+                      lp.op_range if role == "op" else None, lp.origin)
             for lp in loops for role, p in (("op", lp.op), ("pv", lp.pv))]
 
 
@@ -252,6 +254,7 @@ def _carry_results(old: Runtime, new: Runtime) -> None:
         new.store.latest_op[i] = old.store.latest_op[j]
         new.store.latest_pv[i] = old.store.latest_pv[j]
         new.store.stale[i] = old.store.stale[j]
+        new.store.down[i] = old.store.down[j]
 
 
 def reload_summary(old: Runtime, new: Runtime) -> str:

@@ -10,15 +10,16 @@ which bounds the memory a round holds. A round that is still running when the ne
 makes that one wait (no pile-up). Workers run at a lower CPU priority (``nice`` +10 by
 default), so on a busy box the polling event loop wins a contested core and analysis only
 takes what is left, and they die with the gateway however it ends (:func:`die_with_parent`).
-Each verdict change of a loop is logged once, with its reason.
+Each verdict change of a loop is logged once, with its reason (not while the loop is
+``device_down``: the device's one line says why, not one line per loop).
 
 With ``plant.enabled`` (the default) a round ends with the plant-wide step
-(:mod:`gateway.core.plant`): the loops of each poll interval go to one worker together,
-:func:`stiction.plant.analyze_plant` finds the oscillations they share and their source,
-and followers called ``stiction`` become ``propagated`` before the round's results are
-published (so a round publishes each loop once, plant-aware). A loop in no group keeps its
-per-loop assessment unchanged. One log line when a group appears, changes its source or
-ends.
+(:mod:`gateway.core.plant`): the loops of each time base (poll interval and window length)
+go to one worker together, :func:`stiction.plant.analyze_plant` finds the oscillations they
+share and their source, and followers called ``stiction`` become ``propagated`` before the
+round's results are published (so a round publishes each loop once, plant-aware). A loop in
+no group keeps its per-loop assessment unchanged. One log line when a group appears,
+changes its source or ends.
 """
 
 from __future__ import annotations
@@ -254,10 +255,12 @@ class AnalysisScheduler:
 
 def publish(store: ResultStore, index: int, assessment: Assessment, *, t: float,
             fill: float, samples: int) -> None:
-    """One loop's result into the store, its verdict change logged."""
+    """One loop's result into the store, its verdict change logged (not while its device is
+    down: the device's line says why)."""
     before = store.results[index]
     store.set_result(index, assessment, t=t, window_fill=fill, samples=samples)
-    log_verdict_change(store.loops[index], before, assessment)
+    if not (store.stale[index] and store.down[index]):
+        log_verdict_change(store.loops[index], before, assessment)
 
 
 def log_verdict_change(loop: str, before: LoopResult | None, after: Assessment) -> None:

@@ -55,11 +55,13 @@ VERDICT_CODES: dict[str, int] = {
     "stale": 6,
     Verdict.VALVE_NOT_RESPONDING: 7,
     Verdict.WARMING_UP: 8,
-    Verdict.PROPAGATED: 9,
+    "device_down": 9,
+    Verdict.PROPAGATED: 10,
 }
 """Verdict codes of register +0 ("none": no assessment yet; "stale": no fresh samples;
-"warming_up": the window is still filling and no oscillation is seen yet; "propagated":
-the loop carries a cycle whose source is another loop, or outside, see +18..+19)."""
+"warming_up": the window is still filling and no oscillation is seen yet; "device_down":
+stale because the loop's device is down, e.g. refusing every request; "propagated": the
+loop carries a cycle whose source is another loop, or outside, see +18..+19)."""
 ROLES = ("none", "source", "follower")
 """A loop's plant-wide role (register +18, high byte): its code is its position."""
 
@@ -140,10 +142,12 @@ class LoopResultLike(Protocol):
     def window_fill(self) -> float: ...
 
 
-def verdict_code(result: LoopResultLike | None, stale: bool = False) -> int:
-    """Register +0 of a loop: stale wins over any assessment."""
+def verdict_code(result: LoopResultLike | None, stale: bool = False,
+                 down: bool = False) -> int:
+    """Register +0 of a loop: stale (device_down if its device is ``down``) wins over any
+    assessment."""
     if stale:
-        return VERDICT_CODES["stale"]
+        return VERDICT_CODES["device_down" if down else "stale"]
     if result is None:
         return VERDICT_CODES["none"]
     return VERDICT_CODES[result.assessment.verdict]

@@ -90,8 +90,8 @@ def test_ten_thousand_loops_over_four_unit_ids() -> None:
     data = cfg()
     template = data["loops"][0]
     loops = [{**template, "name": f"L{i:05d}",
-              "op": {"address": 4 * (i % 2000), "type": "float32"},
-              "pv": {"address": 4 * (i % 2000) + 2, "type": "float32"}}
+              "op": {"address": 4 * i, "type": "float32"},
+              "pv": {"address": 4 * i + 2, "type": "float32"}}
              for i in range(10_000)]
     assign_result_blocks(loops, unit_id=1)
     data["loops"] = loops

@@ -4,6 +4,7 @@ as it did before (a snapshot taken with the code before the change)."""
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
 from pathlib import Path
@@ -21,8 +22,12 @@ CLI = [sys.executable, "-m", "gateway.cli"]
 
 
 def loop(name: str, device: str = "plc1", **extra: Any) -> dict[str, Any]:
-    return {"name": name, "device": device, "op": {"address": 0, "type": "float32"},
-            "pv": {"address": 2, "type": "float32"}, **extra}
+    at = 4 * (next(_ADDRESSES) % 16000)  # its own registers: check-config refuses overlaps
+    return {"name": name, "device": device, "op": {"address": at, "type": "float32"},
+            "pv": {"address": at + 2, "type": "float32"}, **extra}
+
+
+_ADDRESSES = itertools.count()
 
 
 def cfg(loops: list[dict[str, Any]], **top: Any) -> Any:
@@ -143,10 +148,10 @@ def test_check_config_says_what_it_assigned(tmp_path: Path) -> None:
                      f"float32}}, pv: {{address: {4 * k + 2}, type: float32}}}}"
                      for k in range(10))
     path.write_text("devices: [{name: plc1, protocol: modbus, host: 10.0.0.1}]\nloops:\n"
-                    + rows + "\n  - {name: X, device: plc1, op: {address: 0, type: int16}, "
-                    "pv: {address: 1, type: int16}, result_address: 0, result_unit_id: 2}\n"
-                    "  - {name: Y, device: plc1, op: {address: 0, type: int16}, "
-                    "pv: {address: 1, type: int16}, result_unit_id: 2}\n")
+                    + rows + "\n  - {name: X, device: plc1, op: {address: 40, type: int16}, "
+                    "pv: {address: 41, type: int16}, result_address: 0, result_unit_id: 2}\n"
+                    "  - {name: Y, device: plc1, op: {address: 42, type: int16}, "
+                    "pv: {address: 43, type: int16}, result_unit_id: 2}\n")
     res = subprocess.run([*CLI, "check-config", str(path)], capture_output=True, text=True,
                          timeout=60, check=False)
     assert res.returncode == 0, res.stderr

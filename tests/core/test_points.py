@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gateway.core.points import FLOAT32_TINY, PointSpec, PointTable, Quality
+from gateway.core.points import (
+    FLOAT32_TINY,
+    OP_MARGIN,
+    Implausible,
+    PointSpec,
+    PointTable,
+    Quality,
+    explain,
+)
+from gateway.inputs.modbus.config import ModbusPoint
 from gateway.wire.codec import decode_registers, encode_values
 
 G, U, B, N = Quality.GOOD, Quality.UNCERTAIN, Quality.BAD, Quality.NO_COMM
@@ -78,3 +87,46 @@ def test_integer_points_are_never_subnormal(typ: str) -> None:
     raw = decode_registers(encode_values([0, 1, 7], typ), typ)
     _, quality = table(None, None, None).engineering(raw, np.full(3, G, np.uint8))
     assert (quality == G).all()
+
+
+# ----------------------------------------------------------- issue 23: judged, with a cause
+
+
+def _op(address: object = 0, span: tuple[float, float] | None = (0.0, 100.0)) -> PointSpec:
+    return PointSpec("FIC101", "op", address, span=span, origin="loops.csv: line 2")
+
+
+def test_an_op_far_outside_op_range_is_implausible_a_few_percent_beyond_is_not() -> None:
+    """The issue's case: an off-by-one float32 read -2.5e17 with op_range 0-100 and passed
+    as GOOD; 3,000 % is a wrong register or scale; 105 % is a DCS driving OP a little
+    beyond its span (OP_MARGIN)."""
+    t = PointTable([_op(), _op(), _op(), _op(), _op(span=None)])
+    raw = np.array([-2.5e17, 3000.0, 105.0, -9.0, 3000.0])
+    values, quality, causes = t.judge(raw, np.full(5, G, np.uint8))
+    assert causes.tolist() == [Implausible.HUGE, Implausible.OP_RANGE, Implausible.NONE,
+                               Implausible.NONE, Implausible.NONE]
+    assert quality.tolist() == [B, B, G, G, G]
+    assert np.isnan(values[:2]).all()
+    assert OP_MARGIN == 0.1
+
+
+def test_nan_and_what_the_source_said_first() -> None:
+    t = PointTable([_op(), _op()])
+    _v, quality, causes = t.judge(np.array([np.nan, 5e20]), np.array([G, N], np.uint8))
+    assert causes.tolist() == [Implausible.NOT_FINITE, Implausible.NONE]  # NO_COMM stays
+    assert quality.tolist() == [B, N]
+
+
+def test_explain_names_the_likely_cause_and_the_other_word_order() -> None:
+    f32 = ModbusPoint(0, "float32")
+    huge = explain(_op(f32), -2.5e17, Implausible.HUGE)
+    assert huge.startswith("-2.5e+17 is beyond 1e+15: register garbage")
+    assert "off by one" in huge and "word order" in huge
+    swapped = _swapped(50.0)  # 50.0 with its words swapped: a subnormal
+    text = explain(_op(f32), swapped, Implausible.SUBNORMAL)
+    assert "word order is likely wrong" in text
+    assert text.endswith("with the other word order it reads 50")
+    out = explain(_op(f32), 3000.0, Implausible.OP_RANGE)
+    assert out.startswith("3000 is outside op_range 0..100")
+    assert "off by one" in out
+    assert explain(_op(f32), 50.0, Implausible.NONE) == ""

@@ -53,18 +53,20 @@ def test_run_serves_and_stops_cleanly_on_sigterm(tmp_path: Path) -> None:
         text = _wait_http(metrics_port)
         assert 'stiction_device_up{device="plc1"} 0.0' in text
         assert 'stiction_loop_verdict{loop="FIC101",verdict="none"} 1.0' in text
-        stale = 'stiction_loop_verdict{loop="FIC101",verdict="stale"} 1.0'
-        deadline = time.monotonic() + 10  # stale after 3 polls without a good sample
+        # stale after 3 polls without a good sample: device_down, its device being down
+        stale = 'stiction_loop_verdict{loop="FIC101",verdict="device_down"} 1.0'
+        deadline = time.monotonic() + 10
         while stale not in text and time.monotonic() < deadline:
             time.sleep(0.5)
             text = _wait_http(metrics_port)
         assert stale in text
+        assert 'stiction_device_down_reason{device="plc1",reason="no connection"} 1.0' in text
         t0 = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=15)
         assert proc.returncode == 0, out
         assert time.monotonic() - t0 < 5.0
-        assert "device plc1: down (connect)" in out
+        assert "device plc1: down (no connection)" in out
         assert "gateway stopping" in out
         assert "Traceback" not in out
     finally:

@@ -107,6 +107,15 @@ def test_every_command_of_the_onboarding_page_runs_in_order(tmp_path: Path) -> N
     assert "I/O Timeout" in export
     assert any(c.startswith("stiction analyze FIC101-export.csv") for c in commands)
     assert (tmp_path / "state").is_dir()  # the gateway ran and wrote its state at SIGTERM
+    # the mistakes of a first day (issue 23): a wrong unit id and an address off by one,
+    # each probed and named in words (the outputs above were checked line by line)
+    assert "unit_id: 5" in (tmp_path / "gw-unit5.yaml").read_text()
+    assert "probe --config gw-unit5.yaml" in " ".join(commands)
+    assert "FIC401,plc1,13,15,float32" in (tmp_path / "new-loops.csv").read_text()
+    assert "probe --config gw-new.yaml" in " ".join(commands)
+    for shown in ("unit id 5 is not served by the PLC", "IMPLAUSIBLE",
+                  "the address off by one", "2 implausible (see status)"):
+        assert shown in text
 
 
 def wait_first_line(proc: subprocess.Popen[str], log: Path, what: str) -> None:

@@ -49,7 +49,51 @@ def _registry() -> CollectorRegistry:
     metrics.state_write_failures.inc()
     metrics.state_last_write.set(1_700_000_000)
     metrics.track_server("modbus", ListenerStats())
+    metrics.add_device("plc2")  # down: a wrong unit id
+    metrics.set_down_reason("plc2", "unit id 5 not served")
+    metrics.count_refused("plc2", "unit id 5 not served")
     return registry
+
+
+def test_a_down_device_has_one_reason_series_in_the_log_words_and_none_while_up() -> None:
+    """Issue 23 item 1: why a device is down is a label (few values: the log's words);
+    one series per device at a time, none while it is up or after it left the config."""
+    reg = CollectorRegistry()
+    m = GatewayMetrics(reg)
+    m.add_device("plc1")
+
+    def reasons() -> dict[str, float]:
+        return {s.labels["reason"]: s.value for f in reg.collect()
+                if f.name == "stiction_device_down_reason" for s in f.samples}
+
+    assert reasons() == {}
+    m.set_down_reason("plc1", "no connection")
+    m.set_down_reason("plc1", "unit id 5 not served")
+    assert reasons() == {"unit id 5 not served": 1.0}
+    m.set_down_reason("plc1", None)
+    assert reasons() == {}
+    m.set_down_reason("plc1", "no answer")
+    m.count_refused("plc1", "illegal data address")
+    m.remove_device("plc1")
+    assert reasons() == {}
+    assert reg.get_sample_value("stiction_poll_refused_requests_total",
+                                {"device": "plc1", "exception": "illegal data address"}) is None
+
+
+def test_a_stale_loop_of_a_down_device_is_device_down_in_metrics_and_registers() -> None:
+    st = ResultStore(["FIC101", "LIC201"])
+    rows = np.array([0, 1])
+    st.set_stale(rows, np.array([True, True]), down=True)
+    st.set_stale(rows[1:], np.array([True]), down=False)
+    reg = CollectorRegistry()
+    reg.register(StoreCollector(st))
+    got = {(lp, v): reg.get_sample_value("stiction_loop_verdict", {"loop": lp, "verdict": v})
+           for lp in st.loops for v in ("device_down", "stale")}
+    assert got == {("FIC101", "device_down"): 1.0, ("FIC101", "stale"): 0.0,
+                   ("LIC201", "device_down"): 0.0, ("LIC201", "stale"): 1.0}
+    assert verdict_code(None, stale=True, down=True) == 9
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "modbus-map.md").read_text()
+    assert "| 9 | device down |" in doc
 
 
 def test_a_window_warming_up_is_its_own_verdict_in_metrics_and_registers() -> None:

@@ -78,7 +78,7 @@ def test_bad_values_become_flags_and_bad_data(caplog: pytest.LogCaptureFixture) 
     assert codes == {"NANL": 5, "RANGE": 5, "SWAP": 5, "SWAP50": 5, "FROZEN": 5,
                      "OK": codes["OK"]}
     assert codes["OK"] in (1, 2, 3, 4)
-    logged = [r.getMessage() for r in caplog.records if "bad values" in r.getMessage()]
+    logged = [r.getMessage() for r in caplog.records if "implausible values" in r.getMessage()]
     assert logged and "NANL.op" in logged[0]
 
 

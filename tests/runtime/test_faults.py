@@ -9,7 +9,8 @@ Five devices polled by one gateway every 100 ms:
 * ``partial`` - answers, but one block fails (a Modbus exception) until it answers again.
 
 Asserted: exactly the loops fed by a failed device or block go stale (verdict code 6 in the
-result registers, ``stiction_loop_verdict{verdict="stale"}`` 1), the rest do not; the
+result registers, ``stiction_loop_verdict{verdict="stale"}`` 1; those of a device that is
+down ``device_down``, code 9), the rest do not; the
 gateway reconnects with capped backoff; one log line per device when it goes down and one
 when it recovers (likewise per failing block); and the live device keeps its schedule: its
 tick start times deviate from the ideal absolute schedule by at most ``LATENESS_BOUND_S``.
@@ -38,6 +39,7 @@ LATENESS_BOUND_S = 0.050  # a dead or silent device may delay a live one's ticks
 PERIOD = 0.1
 CAP = 0.5  # gateway.reconnect_max_s
 STALE = 6
+DOWN = 9  # device_down: stale because the device is down
 
 
 @pytest.mark.timing
@@ -99,14 +101,15 @@ def test_plc_faults_are_contained(caplog: pytest.LogCaptureFixture) -> None:
     elapsed = time.monotonic() - t0
 
     c1, c2, c3 = out["codes_1"], out["codes_2"], out["codes_3"]
-    # only the loops fed by a failed device or block are stale (no analysis ran yet: 0)
-    assert c1 == {"LIVE1": 0, "DEAD1": STALE, "MUTE1": STALE, "FLAKY1": 0, "PART_OK": 0,
+    # only the loops fed by a failed device or block are stale (no analysis ran yet: 0);
+    # those of a device that is down read device_down (one device alert, not one per loop)
+    assert c1 == {"LIVE1": 0, "DEAD1": DOWN, "MUTE1": DOWN, "FLAKY1": 0, "PART_OK": 0,
                   "PART_EXC": STALE}
-    assert out["stale_metric_1"] == {"LIVE1": 0, "DEAD1": 1, "MUTE1": 1, "FLAKY1": 0,
+    assert out["stale_metric_1"] == {"LIVE1": 0, "DEAD1": 0, "MUTE1": 0, "FLAKY1": 0,
                                      "PART_OK": 0, "PART_EXC": 1}
-    assert c2 == {**c1, "FLAKY1": STALE}  # type: ignore[dict-item]
+    assert c2 == {**c1, "FLAKY1": DOWN}  # type: ignore[dict-item]
     assert out["up_2"] == {"live": 1, "refused": 0, "silent": 0, "flaky": 0, "partial": 1}
-    assert c3 == {"LIVE1": 0, "DEAD1": STALE, "MUTE1": STALE, "FLAKY1": 0, "PART_OK": 0,
+    assert c3 == {"LIVE1": 0, "DEAD1": DOWN, "MUTE1": DOWN, "FLAKY1": 0, "PART_OK": 0,
                   "PART_EXC": 0}
     assert out["tasks_alive"]
 
@@ -131,7 +134,7 @@ def test_plc_faults_are_contained(caplog: pytest.LogCaptureFixture) -> None:
     assert count("silent", "down") == 1
     assert count("flaky", "down") == 1
     assert count("flaky", "recovered") == 1
-    assert count("partial", "exception code 2") == 1
+    assert count("partial", "exception code 2; its points are gaps") == 1
     assert count("partial", "answering again") == 1
     assert count("live", "") == 0
     assert count("refused", "") == 1 and count("silent", "") == 1  # never recovered

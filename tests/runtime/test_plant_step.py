@@ -90,7 +90,7 @@ def test_a_round_makes_the_followers_propagated_and_names_the_source(
     block = decode_block(result_block(store.results[i], code=verdict_code(store.results[i]),
                                       plant=store.plant_registers(i)))
     assert (block["code"], block["plant_group"], block["plant_role"],
-            block["plant_source"]) == (9, 1, 2, 1)
+            block["plant_source"]) == (10, 1, 2, 1)
     reason = store.results[i].assessment.reason
     assert "its source is FIC101" in reason
     plant_lines = [r.getMessage() for r in caplog.records if r.name == "gateway.plant"]

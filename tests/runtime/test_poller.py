@@ -51,15 +51,20 @@ def test_a_dead_device_is_gaps_stale_after_three_polls_and_retried_with_backoff(
     _t, op, _pv, q = h.window("A")
     assert (q == N).all() and np.isnan(op).all()  # gaps, never zeros
     assert stale == [False] * 3 + [True] * 47
-    assert h.block("A")[0] == 6  # the result register says stale
-    assert h.metric("stiction_loop_verdict", loop="A", verdict="stale") == 1.0
+    # stale because its device is down: device_down (issue 23: one device alert, not one
+    # LoopStale per loop), with the reason in the device's metric
+    assert h.block("A")[0] == 9
+    assert h.metric("stiction_loop_verdict", loop="A", verdict="device_down") == 1.0
+    assert h.metric("stiction_loop_verdict", loop="A", verdict="stale") == 0.0
     assert h.metric("stiction_device_up", device="plc") == 0.0
+    assert h.metric("stiction_device_down_reason", device="plc",
+                    reason="no connection") == 1.0
     # backoff: several attempts, fewer than polls, never more than CAP apart
     assert 5 <= src.connects < 40
     assert h.metric("stiction_poll_errors_total", device="plc", kind="connect") == src.connects
     assert h.poller("plc").backoff.ceiling() == CAP
     assert poller_lines(caplog) == [
-        "device plc: down (connect): device plc: cannot connect (connect, scripted); "
+        "device plc: down (no connection): device plc: cannot connect (connect, scripted); "
         "retrying with backoff up to 0.5 s"]
 
 
@@ -85,8 +90,9 @@ def test_recovery_is_logged_once_and_resets_the_backoff(
     assert h.metric("stiction_device_up", device="plc") == 1.0
     lines = poller_lines(caplog)
     assert len(lines) == 2
-    assert lines[0].startswith("device plc: down (timeout)")
+    assert lines[0].startswith("device plc: down (no answer)")
     assert lines[1] == "device plc: recovered"
+    assert h.metric("stiction_device_down_reason", device="plc", reason="no answer") is None
 
 
 def test_a_refused_login_is_retried_less_often() -> None:
@@ -141,9 +147,37 @@ def test_implausible_values_are_bad_not_stale_and_logged_on_change(
     assert h.window("RANGE")[3].tolist() == [B] * 5 + [G] * 5
     assert (h.window("OK")[3] == G).all()
     assert not h.store.stale.any()  # the device answered: bad values are not stale
-    assert poller_lines(caplog) == [
-        "device plc: bad values (NaN, inf, subnormal or out of range) at NANL.pv, RANGE.pv",
-        "device plc: values plausible again"]
+    lines = poller_lines(caplog)
+    assert len(lines) == 2 and lines[1] == "device plc: values plausible again"
+    assert lines[0].startswith("device plc: implausible values at NANL.pv, RANGE.pv (bad "
+                               "samples until they are plausible) - NANL pv: nan is not a "
+                               "number; the address is likely off by one")
+    assert "; RANGE pv: 150 is outside its range 0..100: the address, type, word order " \
+        "or scale is likely wrong, or the range" in lines[0]
+
+
+def test_an_op_read_off_by_one_is_implausible_with_its_cause_in_the_log(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """Issue 23: an off-by-one float32 OP read -2.5e17 (op_range 0-100) and the poller took
+    it as GOOD; so would 3,000 %. Now both are BAD, and the one log line names the point,
+    its tag-list line and the likely cause; 104 % (a DCS driving OP past its span) is
+    not."""
+    caplog.set_level(logging.INFO, logger="gateway")
+    rows = [[-2.5e17, 20.0, 3000.0, 20.0, 104.0, 20.0]] * 5
+    raw = mconfig([memory_device("plc", rows, poll_interval_s=0.1)],
+                  [mloop("OFF", "plc", 0, 0), mloop("SCALE", "plc", 2, 20),
+                   mloop("OK", "plc", 4, 40)])
+    h = Harness(parse_config(raw, "<test>"))
+    asyncio.run(h.tick(5))
+    assert h.window("OFF")[3].tolist() == [B] * 5
+    assert h.window("SCALE")[3].tolist() == [B] * 5
+    assert (h.window("OK")[3] == G).all()
+    (line,) = poller_lines(caplog)  # once, not per poll
+    assert line.startswith("device plc: implausible values at OFF.op, SCALE.op")
+    assert "OFF op: -2.5e+17 is beyond 1e+15: register garbage; the address is likely " \
+        "off by one" in line
+    assert "SCALE op: 3000 is outside op_range 0..100 (OP is % of valve span, 10% of it " \
+        "allowed beyond)" in line
 
 
 def test_poll_requests_metric_counts_what_the_source_sent() -> None:
@@ -196,3 +230,42 @@ def test_missed_ticks_become_gap_rows_in_time_order() -> None:
     assert p.missed_ticks >= 2
     assert int((q == N).sum()) == p.missed_ticks
     assert (np.diff(t) >= 0).all()  # one row per sample time, in order
+
+
+def test_a_device_refusing_every_request_is_down_with_the_reason_its_loops_device_down(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """Issue 23, item 1: a PLC that answers every request with exception 10 (device
+    unit_id 5, the PLC serves 1) looked healthy: stiction_device_up 1, one block line, then
+    every loop stale (a LoopStale alert each). Now the device is down, the reason in a
+    label and in the one log line, in the same words; its loops are device_down."""
+    caplog.set_level(logging.INFO, logger="gateway")
+    loops = [mloop(f"L{k:03d}", "plc", 2 * k, 20 * k) for k in range(100)]
+    h = harness(memory_device("plc", wiggle(50, 200), poll_interval_s=0.1), loops=loops)
+    src = h.source("plc")
+    words = "unit id 5 not served"
+    src.refused = (words, "holding 0+125: gateway path unavailable (exception 10): unit id 5 "
+                          "is not served by the PLC; set the device's unit_id")
+
+    async def go() -> None:
+        await h.tick(3)
+        src.refused = None
+        await h.tick(2)  # it answers again (the unit id fixed)
+        src.refused = (words, src_message)
+        await h.tick(10)
+
+    src_message = src.refused[1]
+    asyncio.run(go())
+    assert h.metric("stiction_device_up", device="plc") == 0.0
+    assert h.metric("stiction_device_down_reason", device="plc", reason=words) == 1.0
+    assert h.metric("stiction_poll_refused_requests_total", device="plc",
+                    exception=words) == 13
+    names = [h.store.verdict_name(i) for i in range(100)]
+    assert names == ["device_down"] * 100  # not 100 stale loops
+    assert h.metric("stiction_loop_verdict", loop="L042", verdict="stale") == 0.0
+    assert (h.window("L000")[3][-10:] == N).all()
+    lines = poller_lines(caplog)
+    assert lines == [
+        f"device plc: down ({words}): device plc: {src_message}; polling on; its loops "
+        "are device_down", "device plc: recovered",
+        f"device plc: down ({words}): device plc: {src_message}; polling on; its loops "
+        "are device_down"]

@@ -94,7 +94,7 @@ def test_probe_prints_what_the_plc_holds_decoded_and_scaled(tmp_path: Path) -> N
             assert rows["FIC101", "pv"].value == float(np.float32(plc.pv[0]))
             assert rows["TIC301", "pv"].quality == Quality.BAD
             assert np.isnan(rows["TIC301", "pv"].value)
-            assert "implausible" in format_probe(results)
+            assert "IMPLAUSIBLE  50 is outside its range 1000..2000" in format_probe(results)
             # the command prints the same, 7 significant digits
             code, out, err = await cli("probe", "--config", str(path), "FIC101", "LIC201")
             assert code == 0, err
@@ -132,9 +132,13 @@ def test_probe_names_the_request_of_an_exception_code(tmp_path: Path) -> None:
             assert code == 1
             got = table(out)
             assert got["FIC101", "op"][6] == "GOOD"
-            assert got["TIC301", "op"][3:] == ["holding 400 float32", "nan", "nan", "NO_COMM",
-                                               "holding 400+4: exception code 2"]
-            assert "stiction-gateway: device plc-sim: holding 400+4: exception code 2" in err
+            words = ("holding 400+4: illegal data address (exception 2): registers 400..403 "
+                     "are outside the PLC's map (some or all); check the address of TIC301 op "
+                     "and pv against the PLC's register list; addresses are 0-based: 40001 "
+                     "is 0")
+            assert got["TIC301", "op"][3:7] == ["holding 400 float32", "nan", "nan", "NO_COMM"]
+            assert got["TIC301", "op"][7] == words
+            assert f"stiction-gateway: device plc-sim: {words}" in err
             assert err.splitlines()[-1] == "4 of 6 point(s) good"
 
     run(go(), 60)

@@ -71,7 +71,8 @@ def test_the_layout_fits_the_block_and_the_codes_are_the_documented_ones() -> No
                                                               ("seq", 1, "uint16")]
     assert VERDICT_CODES == {"none": 0, "not_oscillating": 1, "no_stiction": 2,
                              "undetermined": 3, "stiction": 4, "bad_data": 5, "stale": 6,
-                             "valve_not_responding": 7, "warming_up": 8, "propagated": 9}
+                             "valve_not_responding": 7, "warming_up": 8, "device_down": 9,
+                             "propagated": 10}
     st = sample_store(latest=False)
     assert [verdict_code(r) for r in st.results] == [4, 2, 0]
     assert verdict_code(st.results[0], stale=True) == 6

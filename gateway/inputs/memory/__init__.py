@@ -17,8 +17,9 @@ and a point reads one column: ``op: {column: 0}``. From Python, :class:`MemorySo
 takes rows with :meth:`~MemorySource.feed` and scripts failures: ``down`` (every connect and
 read fails with that kind: a refused or unreachable device), ``silent`` (connects, but every
 read fails with a timeout), ``fail_reads`` (read number -> kind), ``failing_blocks`` (a
-partial failure: those points NO_COMM with a DeviceError of kind ``exception``) and
-``hang_s`` (every read takes that long first).
+partial failure: those points NO_COMM with a DeviceError of kind ``exception``),
+``refused`` (a reason and a message: every point refused, as by a PLC that does not serve
+the unit id) and ``hang_s`` (every read takes that long first).
 """
 
 from __future__ import annotations
@@ -137,6 +138,8 @@ class MemorySource:
         self.silent = False  # connect succeeds, reads time out
         self.fail_reads: dict[int, str] = {}  # read number (1, 2, ...) -> kind
         self.failing_blocks: dict[str, Sequence[int]] = {}  # block name -> point indices
+        # (reason, message): every read answered, every point refused (an exception)
+        self.refused: tuple[str, str] | None = None
         self.hang_s = 0.0
         self.connected = False
         self.connects = self.reads = self.closes = 0
@@ -174,6 +177,11 @@ class MemorySource:
             values[list(points)] = np.nan
             quality[list(points)] = Quality.NO_COMM
             errors.append(DeviceError(self.name, "exception", f"{block}: exception code 2"))
+        if self.refused is not None:
+            reason, message = self.refused
+            values[:] = np.nan
+            quality[:] = Quality.NO_COMM
+            errors = [DeviceError(self.name, "exception", message, reason=reason)]
         return ReadResult(t, values, quality, 1, tuple(errors))
 
     def _row(self, k: int) -> tuple[NDArray[np.float64], NDArray[np.uint8]]:

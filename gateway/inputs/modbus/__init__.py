@@ -18,8 +18,15 @@ if TYPE_CHECKING:
     from ...config import DeviceConfig
 
 __all__ = ["POINT_ADDRESS_KEY", "ModbusDeviceOptions", "ModbusInput", "ModbusPoint",
-           "ReadRequest", "create_input", "parse_device", "parse_point", "plan_requests"]
+           "ReadRequest", "create_input", "parse_device", "parse_point", "plan_requests",
+           "point_span"]
 
 
 def create_input(device: DeviceConfig, points: Sequence[PointSpec], **_: Any) -> ModbusInput:
     return ModbusInput(device.name, device.options, points, timeout_s=device.timeout_s)
+
+
+def point_span(address: ModbusPoint) -> tuple[str, int, int]:
+    """The registers a point reads: (table, first, end), for the config's overlap check
+    (:mod:`gateway.config.overlaps`)."""
+    return address.table, address.address, address.address + address.width

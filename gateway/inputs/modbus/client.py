@@ -7,6 +7,12 @@ fancy-index gather and one ``ndarray.view`` (:mod:`gateway.wire.codec`): no per-
 work. pymodbus errors are mapped to :class:`~gateway.errors.DeviceError` here; the client
 never retries by itself (``retries=0``): the poller owns reconnecting.
 
+A request the PLC refuses (a Modbus exception) leaves its points NO_COMM and is one
+:class:`~gateway.errors.DeviceError` of kind ``exception`` in the read's ``errors``, in
+words with the fix and the loops (and tag-list lines) it holds (:mod:`.exceptions`); its
+``reason`` (``illegal data address``, ``unit id 5 not served``) is what the metrics' labels
+say. A read whose every request was refused leaves the poller to call the device down.
+
 Answers are checked strictly, and an answer that is not the one asked for is a protocol
 error (kind ``protocol``), never data: another function code than the request's (4 for
 3), fewer or more registers than asked, or a frame pymodbus cannot decode (a byte count
@@ -32,6 +38,7 @@ from ...errors import DeviceError
 from ...wire.codec import TYPES, decode_registers
 from ..base import ReadResult
 from .config import ModbusDeviceOptions, ModbusPoint
+from .exceptions import refusal
 from .plan import plan_requests
 
 __all__ = ["ModbusInput"]
@@ -61,6 +68,7 @@ class ModbusInput:
                                              options.merge_gap)
         self.image_size = sum(r.count for r in self.requests)
         self._first = first  # each point's first register in the image
+        self._width = np.array([a.width for a in addrs], dtype=np.intp)
         self._failed: list[tuple[slice, str]] = []  # failed requests of the last read
         groups: dict[tuple[str, str, str], list[int]] = {}
         for i, a in enumerate(addrs):
@@ -114,9 +122,10 @@ class ModbusInput:
                 errors.append(DeviceError(self.name, "protocol", f"{what}: answered with "
                                           f"function code {rsp.function_code}, not {fc}"))
             elif rsp.isError():
-                code = getattr(rsp, "exception_code", None)
-                errors.append(DeviceError(self.name, "exception",
-                                          f"{what}: exception code {code}"))
+                reason, message = refusal(getattr(rsp, "exception_code", None), req.table,
+                                          req.address, req.count, unit=unit,
+                                          points=self._points_of(sl))
+                errors.append(DeviceError(self.name, "exception", message, reason=reason))
             elif len(rsp.registers) != req.count:
                 errors.append(DeviceError(self.name, "protocol",
                                           f"{what}: got {len(rsp.registers)} registers"))
@@ -126,6 +135,11 @@ class ModbusInput:
             failed[sl] = True
             self._failed.append((sl, str(errors[-1]).removeprefix(f"device {self.name}: ")))
         return self._decode(t0, image, failed, tuple(errors))
+
+    def _points_of(self, sl: slice) -> list[PointSpec]:
+        """The points with a register in image slice ``sl`` (one request's answer)."""
+        hit = (self._first < sl.stop) & (self._first + self._width > sl.start)
+        return [self.points[int(i)] for i in np.flatnonzero(hit)]
 
     def point_status(self) -> list[str]:
         """Per point, the failed request of the last read that holds it ('' if none)."""

@@ -101,9 +101,10 @@ class ResultServer:
     def refresh(self, i: int) -> None:
         a = int(self.addresses[i])
         st = self.store
+        code = verdict_code(st.results[i], bool(st.stale[i]), bool(st.down[i]))
         self._image_of[i][a:a + RESULT_BLOCK_SIZE] = result_block(
-            st.results[i], code=verdict_code(st.results[i], bool(st.stale[i])),
-            word_order=self.settings.word_order, plant=st.plant_registers(i))
+            st.results[i], code=code, word_order=self.settings.word_order,
+            plant=st.plant_registers(i))
 
     async def prepare(self, config: Config) -> Swap | None:
         """Bind the new ``listen`` address, if it moved, before a reload swaps (OSError if

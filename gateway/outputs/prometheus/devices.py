@@ -1,7 +1,8 @@
-"""The gateway's own metrics: device up, poll duration/requests/errors, missed ticks, poll
-lateness and whether a device keeps its schedule, analysis duration, config reload failures,
-state-file writes, the servers' connections and errors, build info. Ordinary client objects in the
-explicitly passed registry (a fresh one per gateway, so each test gets its own)."""
+"""The gateway's own metrics: device up (and why it is down), refused requests, poll
+duration/requests/errors, missed ticks, poll lateness and whether a device keeps its
+schedule, analysis duration, config reload failures, state-file writes, the servers'
+connections and errors, build info. Ordinary client objects in the explicitly passed
+registry (a fresh one per gateway, so each test gets its own)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,17 @@ class GatewayMetrics:
         self.registry = registry
         self.device_up = Gauge(f"{PREFIX}_device_up", "1 while the device answers polls.",
                                ["device"], registry=registry)
+        self.down_reason = Gauge(
+            f"{PREFIX}_device_down_reason", "1 while the device is down (device_up 0), "
+            "labelled with why, in the log's words: no connection, no answer, login refused, "
+            "protocol error, unit id N not served, illegal data address...; no series "
+            "while it is up.", ["device", "reason"], registry=registry)
+        self.refused = Counter(
+            f"{PREFIX}_poll_refused_requests", "Requests the device refused (a Modbus "
+            "exception), by the exception in words (illegal data address, unit id N not "
+            "served...).", ["device", "exception"], registry=registry)
+        self._reasons: dict[str, str] = {}  # device -> its down_reason label
+        self._refusals: set[tuple[str, str]] = set()  # refused's label sets
         self.poll_duration = Histogram(
             f"{PREFIX}_poll_duration_seconds", "Wall time of one poll of a device.", ["device"],
             buckets=(0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0),
@@ -98,6 +110,21 @@ class GatewayMetrics:
         for kind in DeviceError.KINDS:
             self.poll_errors.labels(device=name, kind=kind)
 
+    def set_down_reason(self, name: str, reason: str | None) -> None:
+        """``stiction_device_down_reason{device=name, reason=...} 1``, or no series (None:
+        the device is up)."""
+        old = self._reasons.pop(name, None)
+        if old is not None and old != reason:
+            with contextlib.suppress(KeyError):
+                self.down_reason.remove(name, old)
+        if reason is not None:
+            self._reasons[name] = reason
+            self.down_reason.labels(device=name, reason=reason).set(1)
+
+    def count_refused(self, name: str, exception: str) -> None:
+        self._refusals.add((name, exception))
+        self.refused.labels(device=name, exception=exception).inc()
+
     def remove_device(self, name: str) -> None:
         """Drop a device's series (it left the config on reload)."""
         for metric in (self.device_up, self.poll_requests, self.poll_duration, self.behind,
@@ -107,6 +134,11 @@ class GatewayMetrics:
         for kind in DeviceError.KINDS:
             with contextlib.suppress(KeyError):
                 self.poll_errors.remove(name, kind)
+        self.set_down_reason(name, None)
+        for dev, exception in [k for k in self._refusals if k[0] == name]:
+            self._refusals.discard((dev, exception))
+            with contextlib.suppress(KeyError):
+                self.refused.remove(dev, exception)
 
 
 
