@@ -23,6 +23,12 @@
         address: 0              # optional; default: right after the previous loop
         window_s: 3600          # optional, only for --write-gateway-config
         result_address: 0       # optional, only for --write-gateway-config
+    plants:                     # optional: interacting loops with one source (plcsim/plant.py)
+      - plant: sticky-feeds-two # a stiction.scenarios.plants.NAMED_PLANTS name
+        prefix: U2.             # optional: loop names are prefix + the plant's loop names
+        address: 100            # optional; default: right after the previous loop
+        window_s: 3600          # optional, only for --write-gateway-config
+        duration_s: 14400       # optional: process s simulated at start, then replayed
 
 It is read with the gateway's one validator (:mod:`gateway.config.schema`).
 """
@@ -41,8 +47,10 @@ from gateway.config.schema import MISSING, Problems, Section
 from gateway.errors import ConfigError
 from gateway.wire.results import RESULT_BLOCK_SIZE
 from stiction.scenarios import SCENARIOS, Scenario, scenario
+from stiction.scenarios.plants import NAMED_PLANTS
 
 from .opcua import POLICY_TYPES, ServerSecurity
+from .plant import DEFAULT_DURATION_S, SimPlant
 
 __all__ = ["REGISTERS_PER_LOOP", "SimConfig", "SimLoop", "load_sim_config", "parse_sim_config"]
 
@@ -73,6 +81,12 @@ class SimConfig:
     word_order: str = "big"
     protocol: str = "modbus"
     opcua: ServerSecurity | None = None  # with protocol opcua: None means None/None
+    plants: tuple[SimPlant, ...] = ()
+
+    def loop_names(self) -> list[str]:
+        """Every loop served, in register order: the single loops, then the plants'."""
+        return [lp.name for lp in self.loops] + [p.name(lp) for p in self.plants
+                                                 for lp in p.loops]
 
 
 def load_sim_config(path: str | Path) -> SimConfig:
@@ -109,7 +123,10 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
     names: set[str] = set()
     next_address = 0
     used: list[tuple[int, str]] = []
-    for _i, _name, sec in s.entries(top, "loops", "loop"):
+    # loops may be left out when plants are given
+    singles = s.entries(top, "loops", "loop") if top.has("loops") or not top.has("plants") \
+        else iter(())
+    for _i, _name, sec in singles:
         lname = sec.req("name", s.string)
         sc_name = sec.req("scenario", s.choice(tuple(SCENARIOS)))
         noise = sec.opt("noise", s.number(non_negative=True), 0.0)
@@ -135,6 +152,7 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
         next_address = address + REGISTERS_PER_LOOP
         loops.append(SimLoop(lname, sc, window_s=window, result_address=result_address,
                              noise=noise, address=address))
+    plants = _parse_plants(top, names, used, next_address)
     used.sort()
     for (a0, n0), (a1, n1) in itertools.pairwise(used):
         if a1 < a0 + REGISTERS_PER_LOOP:
@@ -143,7 +161,34 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
     if not problems.ok:
         raise ConfigError(problems.lines)
     return SimConfig(tuple(loops), listen, unit_id, ts, time_scale, seed, word_order,
-                     protocol, opcua)
+                     protocol, opcua, plants)
+
+
+def _parse_plants(top: Section, names: set[str], used: list[tuple[int, str]],
+                  next_address: int) -> tuple[SimPlant, ...]:
+    """The ``plants`` list (optional): each plant's loops take 4 registers each."""
+    if not top.has("plants"):
+        return ()
+    out = []
+    for _i, _name, sec in s.entries(top, "plants", "plant"):
+        plant = sec.req("plant", s.choice(tuple(NAMED_PLANTS)))
+        prefix = sec.opt("prefix", s.string, "")
+        address = sec.opt("address", s.integer(0, 65536 - REGISTERS_PER_LOOP), next_address)
+        window = sec.opt("window_s", s.number(positive=True), None)
+        duration = sec.opt("duration_s", s.number(positive=True), DEFAULT_DURATION_S)
+        sec.done()
+        if MISSING in (plant, prefix, address, window, duration):
+            continue
+        p = SimPlant(NAMED_PLANTS[plant], prefix, address, window, duration)
+        for k, lp in enumerate(p.loops):
+            name = p.name(lp)
+            if name in names:
+                sec.error("prefix", f"loop name {name!r} is taken: set another prefix")
+            names.add(name)
+            used.append((address + REGISTERS_PER_LOOP * k, name))
+        next_address = address + REGISTERS_PER_LOOP * len(p.loops)
+        out.append(p)
+    return tuple(out)
 
 
 def _parse_opcua(sec: Section, base: Path) -> ServerSecurity | Any:

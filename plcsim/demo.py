@@ -11,8 +11,15 @@ FIC401   disturbance        good valve, 600 s sinusoidal load disturbance
 PIC501   aggressive-tuning  good valve, controller near its stability limit
 =======  =================  ==================================================
 
+and a plant of interacting loops (``U2.*``, :data:`DEMO_PLANT`: the simulated PLC's
+``sticky-feeds-two``): a sticky flow valve U2.FIC101 whose cycle reaches a temperature
+(U2.TIC201) and a level loop (U2.LIC301) through the process. The plant-wide step finds the
+group, names U2.FIC101 its source and the others followers; the table says so per loop and
+lists the groups above it.
+
 At the default 40x, one wall second is 40 process seconds: the sticky flow loop shows
-``stiction`` after about 10 s of wall time, the level loop after about 25 s.
+``stiction`` after about 10 s of wall time, the level loop after about 25 s, the plant's
+group after about 30 s.
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ from .config import parse_sim_config
 from .gateway_yaml import gateway_config
 from .sim import PlcSim
 
-__all__ = ["DEMO_LOOPS", "demo_configs", "run_demo"]
+__all__ = ["DEMO_LOOPS", "DEMO_PLANT", "demo_configs", "run_demo"]
 
 DEMO_TIME_SCALE = 40.0
 DEMO_ANALYSIS_INTERVAL_S = 120.0  # process seconds (3 s of wall time at 40x)
@@ -55,6 +62,10 @@ DEMO_LOOPS: tuple[tuple[str, str, float, str], ...] = (
 )
 
 
+DEMO_PLANT: dict[str, str | float] = {"plant": "sticky-feeds-two", "prefix": "U2.",
+                                      "window_s": 1200.0}
+
+
 def _free(host: str, port: int) -> int:
     """``port`` if it can be bound on ``host``, else 0 (any free port)."""
     with socket.socket() as sock:
@@ -73,6 +84,7 @@ def demo_configs(*, time_scale: float = DEMO_TIME_SCALE, metrics_port: int = 910
         "seed": DEMO_SEED,
         "loops": [{"name": n, "scenario": sc, "noise": DEMO_NOISE, "window_s": w}
                   for n, sc, w, _ in DEMO_LOOPS],
+        "plants": [dict(DEMO_PLANT)],
     }
     sim_cfg = parse_sim_config(sim, "<demo plc-sim>")
     gw = gateway_config(sim_cfg, analysis_interval_s=DEMO_ANALYSIS_INTERVAL_S,
@@ -97,26 +109,42 @@ def render_table(gw: Gateway, started: float, out: TextIO) -> None:
     st = gw.store
     proc = (time.monotonic() - started) * gw.config.gateway.time_scale
     lines = [f"t = {time.monotonic() - started:5.1f} s wall, {proc:7.0f} s process",
-             f"{'loop':8} {'what':22} {'verdict':16} {'SI':>6} {'fd %':>6} {'fs %':>6} "
-             f"{'period s':>8} {'fill':>5} {'#':>4}  (reason below)"]
+             *_plant_lines(gw),
+             f"{'loop':10} {'what':22} {'verdict':16} {'SI':>6} {'fd %':>6} {'fs %':>6} "
+             f"{'period s':>8} {'fill':>5} {'#':>4} {'plant':14}  (reason below)"]
     what = {n: w for n, _, _, w in DEMO_LOOPS}
+    in_plant = f"plant {DEMO_PLANT['plant']}"
     for i, name in enumerate(st.loops):
+        number, role, _source = st.plant.of(name)
+        plant = f"group {number} {role}" if number else ""
         res = st.results[i]
         a = res.assessment if res else None
         size = a.sizes() if a else None  # % of span: the gateway always knows op_range
         lines.append(
-            f"{name:8} {what.get(name, ''):22} {st.verdict_name(i):16} "
+            f"{name:10} {what.get(name, in_plant):22} "
+            f"{st.verdict_name(i):16} "
             f"{_fmt(a.stiction_index if a else None):>6} "
             f"{_fmt(size.fd if size else None, 1, 1):>6} "
             f"{_fmt(size.fs if size else None, 1, 1):>6} "
             f"{_fmt(a.period_s if a else None, 1, 0):>8} "
-            f"{_fmt(res.window_fill if res else None):>5} {res.seq if res else 0:>4}")
+            f"{_fmt(res.window_fill if res else None):>5} {res.seq if res else 0:>4} "
+            f"{plant:14}".rstrip())
         if a is not None:
             lines.extend(_wrapped(a.reason))
     if out.isatty():
         out.write("\x1b[H\x1b[J")
     out.write("\n".join(lines) + "\n\n")
     out.flush()
+
+
+def _plant_lines(gw: Gateway) -> list[str]:
+    """One line per plant-wide group: its number, period, source and loops."""
+    out = []
+    for g in gw.store.plant.groups:
+        source = g.source or "none of the loops (from outside)"
+        out.append(f"plant group {g.number}: a {g.period_s:.0f} s cycle, source {source}, "
+                   f"loops {', '.join(g.loops)}")
+    return out or ["plant groups: none yet (the plant-wide step needs full windows)"]
 
 
 async def run_demo(duration: float | None = None, *, out: TextIO = sys.stdout,
@@ -131,7 +159,8 @@ async def run_demo(duration: float | None = None, *, out: TextIO = sys.stdout,
                                    result_port=_free("127.0.0.1", 5020))
     sim_cfg = parse_sim_config(sim_raw, "<demo plc-sim>")
     async with PlcSim(sim_cfg) as sim:
-        gw_raw["devices"][0]["port"] = sim.port
+        for dev in gw_raw["devices"]:
+            dev["port"] = sim.port
         config = parse_config(gw_raw, "<demo gateway>")
         gateway = Gateway(config)
         gateway.align_polls(sim.mid_step())

@@ -9,8 +9,9 @@ from typing import Any
 import yaml
 
 from gateway.wire.results import RESULT_BLOCK_SIZE, RESULT_LOOPS_PER_UNIT
+from stiction.scenarios import Scenario
 
-from .config import SimConfig
+from .config import REGISTERS_PER_LOOP, SimConfig, SimLoop
 
 __all__ = ["MAX_RESULT_ADDRESS", "assign_result_blocks", "dump_yaml", "gateway_config"]
 
@@ -48,7 +49,7 @@ def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None 
     pki/trusted/) to be created with ``stiction-gateway opcua-cert``."""
     loops: list[dict[str, Any]] = []
     unit, next_result = result_unit_id, 0
-    for lp in cfg.loops:
+    for lp in [*cfg.loops, *_plant_loops(cfg)]:
         sc = lp.scenario
         if lp.result_address is not None:  # on the current unit id
             result_address = lp.result_address
@@ -104,6 +105,18 @@ def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None 
                 device["security"]["username"] = next(iter(sec.users))
                 device["security"]["password_file"] = "secrets/opcua.pw"
         out["devices"] = [device]
+    return out
+
+
+def _plant_loops(cfg: SimConfig) -> list[SimLoop]:
+    """The plants' loops as simulated loops (for their points, process and tuning)."""
+    out = []
+    for p in cfg.plants:
+        for k, lp in enumerate(p.loops):
+            sc = Scenario(p.name(lp), f"loop of plant {p.scenario.name}", kc=lp.kc, ti=lp.ti,
+                          kp=lp.kp, tau=lp.tau, theta=lp.theta, integrating=lp.integrating)
+            out.append(SimLoop(p.name(lp), sc, window_s=p.window_s,
+                               address=p.address + REGISTERS_PER_LOOP * k))
     return out
 
 

@@ -25,6 +25,7 @@ from stiction.models.simulate import LoopBank, LoopParams
 
 from .config import REGISTERS_PER_LOOP, SimConfig
 from .opcua import OpcUaPlcServer
+from .plant import PlantFeed
 
 __all__ = ["PlcSim", "build_banks", "serve"]
 
@@ -66,13 +67,17 @@ class PlcSim:
 
     def __init__(self, cfg: SimConfig) -> None:
         self.cfg = cfg
-        n = len(cfg.loops)
-        addr = np.array([lp.address for lp in cfg.loops], dtype=np.intp)
+        self.singles = len(cfg.loops)
+        plant_addr = [p.address + REGISTERS_PER_LOOP * k for p in cfg.plants
+                      for k in range(len(p.loops))]
+        n = self.singles + len(plant_addr)
+        addr = np.array([lp.address for lp in cfg.loops] + plant_addr, dtype=np.intp)
         size = int(addr.max()) + REGISTERS_PER_LOOP if n else REGISTERS_PER_LOOP
         self.image = np.zeros(size, dtype=np.uint16)
         self._op_idx = addr[:, None] + np.arange(2)
         self._pv_idx = addr[:, None] + 2 + np.arange(2)
         self.banks = build_banks(cfg)
+        self.plants = PlantFeed(cfg.plants, cfg.ts, cfg.seed)
         self.op = np.zeros(n)
         self.pv = np.zeros(n)
         self.steps = 0
@@ -81,7 +86,7 @@ class PlcSim:
                                      host=host, port=port, unit_id=cfg.unit_id)
         self.opcua: OpcUaPlcServer | None = None
         if cfg.protocol == "opcua":
-            self.opcua = OpcUaPlcServer([lp.name for lp in cfg.loops], host=host, port=port,
+            self.opcua = OpcUaPlcServer(cfg.loop_names(), host=host, port=port,
                                         security=cfg.opcua)
         self._task: asyncio.Task[None] | None = None
         self.period = cfg.ts / cfg.time_scale  # wall seconds per step
@@ -100,6 +105,7 @@ class PlcSim:
             out = b.bank.step(sp)
             self.op[b.rows] = out.op
             self.pv[b.rows] = out.pv
+        self.op[self.singles:], self.pv[self.singles:] = self.plants.step()
         wo = self.cfg.word_order
         self.image[self._op_idx] = encode_values(self.op, "float32", wo)
         self.image[self._pv_idx] = encode_values(self.pv, "float32", wo)

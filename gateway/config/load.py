@@ -34,6 +34,7 @@ from .model import (
     GatewaySettings,
     LoopConfig,
     MetricsSettings,
+    PlantSettings,
     PointConfig,
     ResultServerSettings,
     default_timeout,
@@ -72,6 +73,7 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
     metrics = _settings(top.sub("metrics", "metrics"), MetricsSettings, METRICS_KEYS)
     server = _settings(top.sub("modbus_server", "modbus_server"), ResultServerSettings,
                        SERVER_KEYS)
+    plant = _settings(top.sub("plant", "plant"), PlantSettings, PLANT_KEYS)
 
     devices: dict[str, DeviceConfig | None] = {}  # None: named but invalid
     protocols: dict[str, str] = {}  # device name -> protocol, also for invalid devices
@@ -135,7 +137,8 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
     if not problems.ok:
         raise ConfigError(problems.lines)
     config = Config(source, tuple(d for d in devices.values() if d is not None),
-                    tuple(loops), gateway, metrics, server, assigned=tuple(assigned))
+                    tuple(loops), gateway, metrics, server, assigned=tuple(assigned),
+                    plant=plant)
     if one_gateway:
         check_config(problems, config)  # what run would refuse or crash on (checks.py)
     if not problems.ok:
@@ -162,6 +165,10 @@ METRICS_KEYS: dict[str, Callable[[Any], Any]] = {
     "listen": s.listen_address,
     "max_connections": s.integer(1, 10000),
     "idle_timeout_s": s.number(positive=True),
+}
+PLANT_KEYS: dict[str, Callable[[Any], Any]] = {
+    "enabled": s.boolean,
+    "max_samples": s.integer(64, 65536),
 }
 SERVER_KEYS: dict[str, Callable[[Any], Any]] = {
     "listen": s.listen_address,

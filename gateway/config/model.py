@@ -21,6 +21,7 @@ __all__ = [
     "GatewaySettings",
     "LoopConfig",
     "MetricsSettings",
+    "PlantSettings",
     "PointConfig",
     "ResultServerSettings",
     "default_timeout",
@@ -73,6 +74,16 @@ class ResultServerSettings:
     # what read device identification (FC 43/14) answers: (object name, text) pairs of
     # gateway.wire.registers.IDENTIFICATION_OBJECTS; empty: FC 43 is refused
     identification: tuple[tuple[str, str], ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class PlantSettings:
+    """The plant-wide step after each analysis round (docs/configuration.md, ``plant``)."""
+
+    enabled: bool = True  # run stiction.plant over the loops that share a poll interval
+    # samples per signal the plant analysis sees: longer windows are averaged down (bounds
+    # its memory and time; the per-loop analysis always sees the whole window)
+    max_samples: int = 1024
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,6 +143,7 @@ class Config:
     modbus_server: ResultServerSettings = ResultServerSettings()
     # loops whose result_address the loader assigned (config/addresses.py), in config order
     assigned: tuple[str, ...] = ()
+    plant: PlantSettings = PlantSettings()
 
     def device(self, name: str) -> DeviceConfig:
         for dev in self.devices:

@@ -18,7 +18,8 @@ import reprlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["MISSING", "Problems", "Section", "choice", "entries", "flag", "integer",
+__all__ = ["MISSING", "Problems", "Section", "boolean", "choice", "entries", "flag",
+           "integer",
            "label_value", "listen_address", "mapping", "nonempty_list", "number", "number_pair",
            "string"]
 
@@ -139,6 +140,12 @@ class Section:
 def string(value: Any) -> str:
     if not isinstance(value, str) or not value:
         raise TypeError("must be a non-empty string")
+    return value
+
+
+def boolean(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise TypeError("must be true or false")
     return value
 
 

@@ -20,6 +20,8 @@ from numpy.typing import NDArray
 
 from stiction import Assessment
 
+from .plant import ROLE_CODES, PlantView
+
 __all__ = ["LoopResult", "ResultStore", "StoreSnapshot", "verdict_name"]
 
 
@@ -51,6 +53,7 @@ class ResultStore:
         # per loop, a sequence number already published (by an earlier run or config): the
         # next assessment is numbered above it, so the number never goes backwards
         self.seq_floor = np.zeros(n, dtype=np.int64)
+        self.plant = PlantView()  # the plant-wide groups and roles (core/plant.py)
         self._subscribers: list[Callable[[int], None]] = []
 
     def subscribe(self, fn: Callable[[int], None]) -> None:
@@ -100,11 +103,28 @@ class ResultStore:
     def verdict_name(self, i: int) -> str:
         return verdict_name(self.results[i], bool(self.stale[i]), bool(self.down[i]))
 
+    def set_plant(self, view: PlantView) -> None:
+        """Replace the plant view; subscribers hear of the loops whose group, role or
+        source changed."""
+        old, self.plant = self.plant, view
+        for name in set(old.roles) | set(view.roles):
+            i = self.index.get(name)
+            if i is not None and old.of(name) != view.of(name):
+                self._notify(i)
+
+    def plant_registers(self, i: int) -> tuple[int, int, int]:
+        """Loop ``i``'s (group number, role code, source loop's index from 1 in config
+        order; 0: none) for its result block."""
+        number, role, source = self.plant.of(self.loops[i])
+        where = self.index.get(source) if source is not None else None
+        return number, ROLE_CODES[role], 0 if where is None else where + 1
+
     def snapshot(self) -> StoreSnapshot:
         """An immutable copy of everything a reader needs (cheap: the results are shared,
         the arrays copied)."""
         return StoreSnapshot(self.loops, tuple(self.results), self.latest_op.copy(),
-                             self.latest_pv.copy(), self.stale.copy(), self.down.copy())
+                             self.latest_pv.copy(), self.stale.copy(), self.down.copy(),
+                             self.plant)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,6 +137,7 @@ class StoreSnapshot:
     latest_pv: NDArray[np.float64]
     stale: NDArray[np.bool_]
     down: NDArray[np.bool_]
+    plant: PlantView = dataclasses.field(default_factory=PlantView)
 
     def verdict_name(self, i: int) -> str:
         return verdict_name(self.results[i], bool(self.stale[i]), bool(self.down[i]))

@@ -75,7 +75,7 @@ class Gateway:
             self.runtime.groups, self.runtime.store,
             interval_wall_s=g.analysis_interval_s / g.time_scale, workers=g.analysis_workers,
             batch_size=batch_size, analyze=analyze, executor=executor,
-            on_duration=self.metrics.analysis_duration.observe)
+            on_duration=self.metrics.analysis_duration.observe, plant=config.plant)
         self.reloads = 0
         self.polling = asyncio.Event()  # set once every poller has completed a tick
         self._polls = PollTasks()
@@ -231,6 +231,7 @@ class Gateway:
         g = config.gateway
         self.scheduler.groups, self.scheduler.store = list(new.groups), new.store
         self.scheduler.interval_wall_s = g.analysis_interval_s / g.time_scale
+        self.scheduler.plant = config.plant
         # devices that stay keep their schedule (and their connection if their points are
         # unchanged); new devices start now
         self._polls.start(new.pollers, {n: d for n, d in due.items() if n in new.sources})

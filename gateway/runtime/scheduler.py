@@ -12,6 +12,14 @@ default), so on a busy box the polling event loop wins a contested core and anal
 takes what is left, and they die with the gateway however it ends (:func:`die_with_parent`).
 Each verdict change of a loop is logged once, with its reason (not while the loop is
 ``device_down``: the device's one line says why, not one line per loop).
+
+With ``plant.enabled`` (the default) a round ends with the plant-wide step
+(:mod:`gateway.core.plant`): the loops of each time base (poll interval and window length)
+go to one worker together, :func:`stiction.plant.analyze_plant` finds the oscillations they
+share and their source, and followers called ``stiction`` become ``propagated`` before the
+round's results are published (so a round publishes each loop once, plant-aware). A loop in
+no group keeps its per-loop assessment unchanged. One log line when a group appears,
+changes its source or ends.
 """
 
 from __future__ import annotations
@@ -27,10 +35,13 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
+from typing import Any
 
 from stiction import Assessment
 
+from ..config.model import PlantSettings
 from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolve
+from ..core.plant import PlantTracker, analyze_plant_job, plant_jobs
 from ..core.store import LoopResult, ResultStore
 from ..core.windows import LoopGroup
 
@@ -42,6 +53,7 @@ SINGLE_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS
 :meth:`AnalysisScheduler.start`)."""
 
 log = logging.getLogger("gateway.analysis")
+plant_log = logging.getLogger("gateway.plant")
 
 WORKER_NICE = 10
 """Niceness added to each analysis worker: polling must keep its schedule under load."""
@@ -101,7 +113,8 @@ class AnalysisScheduler:
                  analyze: str = DEFAULT_ANALYZE,
                  on_duration: Callable[[float], None] | None = None,
                  nice: int = WORKER_NICE,
-                 executor: Callable[[], Executor] | None = None) -> None:
+                 executor: Callable[[], Executor] | None = None,
+                 plant: PlantSettings | None = None) -> None:
         self.groups = list(groups)
         self.store = store
         self.interval_wall_s = interval_wall_s
@@ -110,8 +123,11 @@ class AnalysisScheduler:
         self.analyze = analyze
         self.on_duration = on_duration
         self.nice = nice
+        self.plant = plant if plant is not None else PlantSettings()
+        self.tracker = PlantTracker()
         self.rounds = 0
         self.last_round_s = 0.0
+        self.last_plant_s = 0.0
         self._executor = executor
         self._pool: Executor | None = None
 
@@ -162,6 +178,8 @@ class AnalysisScheduler:
         store = self.store  # a reload swaps the store: results go where their jobs came from
         sem = asyncio.Semaphore(2 * self.workers)
         done = 0
+        held: dict[int, tuple[Assessment, float, float, int]] | None = \
+            {} if self.plant.enabled else None
 
         async def one(batch: list[LoopJob]) -> None:
             nonlocal done
@@ -173,10 +191,10 @@ class AnalysisScheduler:
                 sem.release()
             t = now()
             for index, assessment, fill, samples, dur in results:
-                before = store.results[index]
-                store.set_result(index, assessment, t=t, window_fill=fill, samples=samples)
-                if not (store.stale[index] and store.down[index]):  # the device's line says
-                    log_verdict_change(store.loops[index], before, assessment)
+                if held is not None:  # published after the plant step
+                    held[index] = (assessment, t, fill, samples)
+                else:
+                    publish(store, index, assessment, t=t, fill=fill, samples=samples)
                 if self.on_duration is not None:
                     self.on_duration(dur)
             done += len(results)
@@ -184,14 +202,65 @@ class AnalysisScheduler:
         # windows are copied batch by batch, only when a slot is free, so at most
         # 2 x workers batches of windows exist at once
         tasks = []
-        for batch in batches(list(self.groups), self.batch_size):
+        groups = list(self.groups)
+        for batch in batches(groups, self.batch_size):
             await sem.acquire()
             tasks.append(asyncio.create_task(one(batch)))
         await asyncio.gather(*tasks)
+        if held is not None:
+            applied = await self._plant_step(store, groups, held)
+            for index, (assessment, t, fill, samples) in held.items():
+                publish(store, index, applied.get(index, assessment), t=t, fill=fill,
+                        samples=samples)
+        elif self.tracker.groups:  # turned off by a reload: the groups end
+            self._set_plant(store, [])
         self.rounds += 1
         self.last_round_s = time.perf_counter() - t0
         log.debug("analysis round %d: %d loops in %.2f s", self.rounds, done, self.last_round_s)
         return done
+
+
+    async def _plant_step(self, store: ResultStore, groups: Sequence[LoopGroup],
+                          held: dict[int, tuple[Assessment, float, float, int]]
+                          ) -> dict[int, Assessment]:
+        """The plant analysis of this round's loops, one worker job per poll interval; the
+        store's plant view set; returns the plant-aware assessments of the loops it
+        changed. A failure is logged and changes nothing (the per-loop results stand)."""
+        t0 = time.perf_counter()
+        loop = asyncio.get_running_loop()
+        try:
+            jobs = plant_jobs(groups, {i: a for i, (a, *_rest) in held.items()},
+                              max_samples=self.plant.max_samples)
+            outs = await asyncio.gather(*(loop.run_in_executor(self._pool, analyze_plant_job, job)
+                                          for job in jobs))
+        except Exception:  # a bug in the plant view must not stop the per-loop results
+            log.exception("plant analysis failed; per-loop results published as they are")
+            return {}
+        applied: dict[int, Assessment] = {}
+        for job, pa in zip(jobs, outs, strict=True):
+            changed = pa.apply(job.assessments)
+            for row, name in zip(job.rows, job.names, strict=True):
+                if changed[name] is not job.assessments[name]:
+                    applied[row] = changed[name]
+        self._set_plant(store, [(pa, job.names) for job, pa in zip(jobs, outs, strict=True)])
+        self.last_plant_s = time.perf_counter() - t0
+        return applied
+
+    def _set_plant(self, store: ResultStore, found: list[tuple[Any, Sequence[str]]]) -> None:
+        view, events = self.tracker.update(found)
+        for line in events:
+            plant_log.info("%s", line)
+        store.set_plant(view)
+
+
+def publish(store: ResultStore, index: int, assessment: Assessment, *, t: float,
+            fill: float, samples: int) -> None:
+    """One loop's result into the store, its verdict change logged (not while its device is
+    down: the device's line says why)."""
+    before = store.results[index]
+    store.set_result(index, assessment, t=t, window_fill=fill, samples=samples)
+    if not (store.stale[index] and store.down[index]):
+        log_verdict_change(store.loops[index], before, assessment)
 
 
 def log_verdict_change(loop: str, before: LoopResult | None, after: Assessment) -> None:

@@ -28,6 +28,7 @@ __all__ = [
     "MAX_RESULT_UNIT_ID",
     "RESULT_BLOCK_SIZE",
     "RESULT_LOOPS_PER_UNIT",
+    "ROLES",
     "VERDICT_CODES",
     "Field",
     "block_values",
@@ -55,17 +56,22 @@ VERDICT_CODES: dict[str, int] = {
     Verdict.VALVE_NOT_RESPONDING: 7,
     Verdict.WARMING_UP: 8,
     "device_down": 9,
+    Verdict.PROPAGATED: 10,
 }
 """Verdict codes of register +0 ("none": no assessment yet; "stale": no fresh samples;
 "warming_up": the window is still filling and no oscillation is seen yet; "device_down":
-stale because the loop's device is down, e.g. refusing every request)."""
+stale because the loop's device is down, e.g. refusing every request; "propagated": the
+loop carries a cycle whose source is another loop, or outside, see +18..+19)."""
+ROLES = ("none", "source", "follower")
+"""A loop's plant-wide role (register +18, high byte): its code is its position."""
 
 
 @dataclasses.dataclass(frozen=True)
 class Field:
     """One value of a block: its name, first register (offset in the block) and type; the
     ``unit`` and ``meaning`` SCADA engineers see (``stiction-gateway result-map``,
-    docs/modbus-map.md); engineering value = register value * ``scale``."""
+    docs/modbus-map.md); engineering value = register value * ``scale``. A ``uint8`` is
+    one byte of its register: ``byte`` "high" or "low"."""
 
     name: str
     offset: int
@@ -73,10 +79,16 @@ class Field:
     unit: str = ""
     meaning: str = ""
     scale: float = 1.0
+    byte: str = ""
 
     @property
     def width(self) -> int:
-        return TYPES[self.type][0]
+        return 1 if self.type == "uint8" else TYPES[self.type][0]
+
+    @property
+    def type_name(self) -> str:
+        """The type as the map shows it: ``uint8 (high byte)`` for a byte."""
+        return f"{self.type} ({self.byte} byte)" if self.byte else self.type
 
 
 _PERCENT = "% of valve span"  # the one unit of sizes (stiction.Sizes); metrics: / 100
@@ -104,8 +116,17 @@ LAYOUT: tuple[Field, ...] = (
           "confidence of stiction, the analysis's weighted vote of its tests (>= 0.7 is a "
           "stiction verdict, <= 0.3 no_stiction); NaN when no test ran (bad data, valve "
           "not responding)"),
+    Field("plant_role", 18, "uint8", "code",
+          "plant-wide role: 0 in no group, 1 source (the loop whose valve drives a cycle "
+          "other loops share), 2 follower (it carries a cycle from elsewhere)", byte="high"),
+    Field("plant_group", 18, "uint8", "number",
+          "plant-wide group: the number (1-255) of the cycle the loop shares with other "
+          "loops of its poll interval; 0 in no group", byte="low"),
+    Field("plant_source", 19, "uint16", "loop index",
+          "the group's source loop: its position in the config (result-map order, from "
+          "1); 0 in no group, or when no loop read is the source (a cycle from outside)"),
 )
-"""Registers +18..+19 are reserved (read as 0). Values not estimated are float32 NaN."""
+"""Values not estimated are float32 NaN."""
 
 
 class LoopResultLike(Protocol):
@@ -136,12 +157,17 @@ def _num(x: float | None) -> float:
     return math.nan if x is None else float(x)
 
 
-def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
+def block_values(result: LoopResultLike | None, code: int,
+                 plant: tuple[int, int, int] = (0, 0, 0)) -> dict[str, float]:
     """The field values of one loop's block (fields left out are 0). Without an assessment
     (none yet, or stale since start) every float is NaN, never 0: a SCADA screen must not
-    show "fd 0.0 %" for a loop never assessed; the sequence number and time are 0."""
+    show "fd 0.0 %" for a loop never assessed; the sequence number and time are 0.
+    ``plant``: the loop's (group number, role code, source loop's index)."""
+    group, role, source = plant
+    plant_values = {"plant_role": role, "plant_group": group, "plant_source": source}
     if result is None:
-        return {"code": code, **{f.name: math.nan for f in LAYOUT if f.type == "float32"}}
+        return {"code": code, **{f.name: math.nan for f in LAYOUT if f.type == "float32"},
+                **plant_values}
     a = result.assessment
     size = a.sizes()
     if size is not None and not size.of_span:  # the gateway always knows op_range
@@ -152,19 +178,33 @@ def block_values(result: LoopResultLike | None, code: int) -> dict[str, float]:
             "fs_percent": _num(size.fs if size else None),
             "period_s": _num(a.period_s), "jump_percent": _num(size.jump if size else None),
             "timestamp": max(0, int(result.t)),
-            "window_fill": result.window_fill, "confidence": _num(a.confidence)}
+            "window_fill": result.window_fill, "confidence": _num(a.confidence),
+            **plant_values}
 
 
-def result_block(result: LoopResultLike | None, *, code: int, word_order: str = "big"
-                 ) -> NDArray[np.uint16]:
-    """The :data:`RESULT_BLOCK_SIZE` registers of one loop."""
+def result_block(result: LoopResultLike | None, *, code: int, word_order: str = "big",
+                 plant: tuple[int, int, int] = (0, 0, 0)) -> NDArray[np.uint16]:
+    """The :data:`RESULT_BLOCK_SIZE` registers of one loop (``plant``: see
+    :func:`block_values`)."""
     block = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
-    values = block_values(result, code)
+    values = block_values(result, code, plant)
     for f in LAYOUT:
-        if f.name in values:
-            block[f.offset:f.offset + f.width] = encode_values([values[f.name]], f.type,
-                                                               word_order)[0]
+        if f.name not in values:
+            continue
+        if f.type == "uint8":
+            byte = int(values[f.name]) & 0xFF
+            block[f.offset] |= byte << 8 if f.byte == "high" else byte
+            continue
+        block[f.offset:f.offset + f.width] = encode_values([values[f.name]], f.type,
+                                                           word_order)[0]
     return block
+
+
+def _decoded(regs: NDArray[np.uint16], f: Field, word_order: str) -> float:
+    if f.type == "uint8":
+        reg = int(regs[f.offset])
+        return float(reg >> 8 if f.byte == "high" else reg & 0xFF)
+    return float(decode_registers(regs[f.offset:f.offset + f.width], f.type, word_order)[0])
 
 
 def decode_block(registers: Iterable[int] | NDArray[np.uint16], word_order: str = "big"
@@ -173,8 +213,7 @@ def decode_block(registers: Iterable[int] | NDArray[np.uint16], word_order: str 
     after the last field)."""
     regs = np.asarray(list(registers) if not isinstance(registers, np.ndarray) else registers,
                       dtype=np.uint16)
-    out = {f.name: float(decode_registers(regs[f.offset:f.offset + f.width], f.type,
-                                          word_order)[0]) for f in LAYOUT}
+    out = {f.name: _decoded(regs, f, word_order) for f in LAYOUT}
     end = max(f.offset + f.width for f in LAYOUT)
     out["reserved"] = float(regs[end:RESULT_BLOCK_SIZE].astype(np.int64).sum())
     return out

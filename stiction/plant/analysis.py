@@ -176,7 +176,7 @@ def analyze_plant(
     for i, o in zip(np.flatnonzero(finite & spec.usable), oscs, strict=True):
         by_row[int(i)] = o
     raw = find_groups(spec, by_row, owner, is_loop)
-    sigs = _Signals(signals, spec, names, owner, is_loop)
+    sigs = _Signals(signals, spec, names, {nm: k for k, nm in enumerate(names)}, owner, is_loop)
     groups = [_group(k + 1, g, sigs, ts=ts, assessments=assessments or {},
                      processes=processes or {}, cascades=dict(cascades or {}))
               for k, g in enumerate(raw)]
@@ -190,6 +190,7 @@ class _Signals:
     rows: FloatArray
     spec: Spectra
     names: list[str]  # the loops, in row order
+    row_of: dict[str, int]  # loop name -> its position in names (its OP is row 2 k)
     owner: list[str]  # each row's loop or indicator
     is_loop: list[bool]
 
@@ -197,8 +198,7 @@ class _Signals:
 def _group(number: int, g: RawGroup, sigs: _Signals, *, ts: float,
            assessments: Mapping[str, Assessment], processes: Mapping[str, str],
            cascades: dict[str, str]) -> Group:
-    owner, is_loop, spec, names, signals = sigs.owner, sigs.is_loop, sigs.spec, sigs.names, \
-        sigs.rows
+    owner, is_loop, spec, signals = sigs.owner, sigs.is_loop, sigs.spec, sigs.rows
     strength: dict[str, float] = {}
     kinds: dict[str, str] = {}
     for i, share in zip(g.signals, g.shares, strict=True):
@@ -211,7 +211,7 @@ def _group(number: int, g: RawGroup, sigs: _Signals, *, ts: float,
     for m in members:
         if m.kind != "loop":
             continue
-        k = names.index(m.name)
+        k = sigs.row_of[m.name]  # not names.index: that made a big group quadratic
         harmonic = max(harmonics(spec, 2 * k, f0, f0 * BAND),
                        harmonics(spec, 2 * k + 1, f0, f0 * BAND))
         evidence.append(member_evidence(

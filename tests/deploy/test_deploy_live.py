@@ -142,6 +142,9 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
             {"name": STICKY, "scenario": "table4-case2", "noise": 0.02, "window_s": 1800},
             {"name": HEALTHY, "scenario": "healthy", "noise": 0.02, "window_s": 1800},
         ],
+        # issue 21: a plant whose sticky valve (U2.FIC101) drives two loops, for the fleet
+        # dashboard's plant-wide panel (its own window: one time base of its own)
+        "plants": [{"plant": "sticky-feeds-two", "prefix": "U2.", "window_s": 1200}],
     }
     (work / "plc-sim.yaml").write_text(yaml.safe_dump(sim_cfg, sort_keys=False))
     r = run(
@@ -204,6 +207,17 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
                     f'{{loop="{STICKY}"}}[1m]) >= 2'
                 )["data"]["result"],
                 30,
+                logs,
+                (sim, gateway),
+            )
+            wait_for(
+                "a plant-wide group and its members, seen by Prometheus",
+                # (any group: whether U2.FIC101 is named its source depends on its own
+                # verdict in the short window, which may waver; test_plant_e2e checks that)
+                lambda: prom.query("stiction_plant_group_loops >= 2 and on (instance) "
+                                   'count by (instance) (stiction_loop_plant_role == 1) >= 2'
+                                   )["data"]["result"],
+                90,
                 logs,
                 (sim, gateway),
             )

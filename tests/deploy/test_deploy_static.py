@@ -85,6 +85,7 @@ def test_rules_cover_what_plant_engineers_asked_for() -> None:
         "AnalysisFallingBehind",  # analysis falling behind
         "StictionPollingBehindSchedule",  # polls miss their ticks (issue 22)
         "StictionStateNotWritten",  # state-file writes fail (issue 22)
+        "PlantSourceDrivesLoops",  # one source drives N loops (issue 21)
     }
     assert "stiction:loop_fd_threshold:ratio" in alerts["LoopFrictionAboveThreshold"]
     rules = {q.where.split()[-1] for q in rule_queries()}

@@ -97,8 +97,9 @@ def test_demo_runs_bounded_and_prints_where_it_listens() -> None:
     out = res.stdout
     assert "Prometheus metrics: http://127.0.0.1:" in out
     assert "Modbus result server: 127.0.0.1:" in out
-    for name in ("FIC101", "LIC201", "TIC301", "FIC401", "PIC501"):
+    for name in ("FIC101", "LIC201", "TIC301", "FIC401", "PIC501", "U2.FIC101", "U2.TIC201"):
         assert name in out
+    assert "plant groups: none yet" in out  # (the plant's windows fill in 30 s)
     assert "demo stopped" in out
     # nothing printed at exit (a pool shut down without joining it printed an ignored
     # "OSError: Bad file descriptor" traceback in about 2 of 5 runs)

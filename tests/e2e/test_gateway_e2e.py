@@ -68,6 +68,9 @@ def test_plc_sim_to_gateway_to_modbus_and_metrics() -> None:
                 text = await asyncio.to_thread(scrape, gw.metrics_port)
                 reasons = {n: (r.assessment.reason if r else "-")
                            for n, r in zip(gw.store.loops, gw.store.results, strict=True)}
+                # the demo's plant (issue 21): its sticky valve named the source of its group
+                (group,) = [g for g in gw.store.plant.groups if g.source == "U2.FIC101"]
+                assert {"U2.TIC201", "U2.LIC301"} <= set(group.loops), group
                 # (almost) every simulated sample read once: at most 1 % of polls missed
                 assert gw.pollers[0].missed_ticks <= 0.01 * gw.pollers[0].polls
                 return blocks, text, reasons
@@ -82,10 +85,12 @@ def test_plc_sim_to_gateway_to_modbus_and_metrics() -> None:
         return samples.get((name, tuple(sorted(labels.items()))))
 
     code_names = {v: k for k, v in VERDICT_CODES.items()}
-    assert set(blocks) == {n for n, *_ in DEMO_LOOPS}
+    assert {n for n, *_ in DEMO_LOOPS} <= set(blocks)
     for name, regs in blocks.items():
         r = np.array(regs, dtype=np.uint16)
         verdict = code_names[int(r[0])]
+        if name.startswith("U2."):  # the plant: its source and followers, checked above
+            continue
         assert verdict in EXPECTED[name], f"{name}: {verdict} ({reasons[name]})"
         si, fd, fs, period, jump = decode_registers(r[2:12], "float32")
         fill = decode_registers(r[14:16], "float32")[0]

@@ -25,6 +25,7 @@ import pytest
 from deploy_support import require_tool
 
 from bench._net import free_port
+from gateway.wire.results import LAYOUT
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 DOC = Path(__file__).resolve().parents[2] / "docs" / "onboarding.md"
@@ -97,7 +98,7 @@ def test_every_command_of_the_onboarding_page_runs_in_order(tmp_path: Path) -> N
                 pytest.fail(f"{what} did not stop on SIGTERM:\n{log.read_text()}")
             assert proc.returncode == 0, f"{what}: exit {proc.returncode}\n{log.read_text()}"
             assert "Traceback" not in log.read_text(), log.read_text()
-    assert (tmp_path / "result-map.csv").read_text().count("\n") == 1 + 3 * 10
+    assert (tmp_path / "result-map.csv").read_text().count("\n") == 1 + 3 * len(LAYOUT)
     # the historian part (issue 23): an export with ';', decimal commas, ISO times and a
     # text cell, analysed as it is
     export = (tmp_path / "FIC101-export.csv").read_text()

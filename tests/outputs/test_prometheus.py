@@ -16,17 +16,27 @@ from prometheus_client import CollectorRegistry, generate_latest
 from result_fixtures import sample_store
 
 from gateway.config import parse_config
+from gateway.core.plant import PlantGroup, PlantView
 from gateway.core.store import ResultStore
 from gateway.outputs.base import Binding
 from gateway.outputs.prometheus import GatewayMetrics, PrometheusSink, StoreCollector
+from gateway.outputs.prometheus.plant import PlantCollector
 from gateway.wire.listener import ListenerStats
 from gateway.wire.results import result_block, verdict_code
 from stiction import Assessment, Verdict
 
+PLANT = PlantView((PlantGroup(1, 228.0, "FIC101", ("FIC101", "FIC401")),
+                   PlantGroup(3, 600.0, None, ("TIC301", "FIC401"))),
+                  {"FIC101": (1, "source"), "FIC401": (1, "follower"),
+                   "TIC301": (3, "follower")})
+
 
 def _registry() -> CollectorRegistry:
     registry = CollectorRegistry()
-    registry.register(StoreCollector(sample_store()))
+    store = sample_store()
+    store.set_plant(PLANT)
+    registry.register(StoreCollector(store))
+    registry.register(PlantCollector(lambda: store))
     metrics = GatewayMetrics(registry)
     metrics.add_device("plc1")
     metrics.device_up.labels(device="plc1").set(1)
@@ -131,6 +141,14 @@ def test_metrics_read_the_store() -> None:
     assert v("stiction_poll_duration_seconds_count", device="plc1") == 1.0
     assert v("stiction_analysis_duration_seconds_count") == 1.0
     assert v("stiction_build_info", version="0.1.0") == 1.0
+    # the plant view: per loop its group and role, per group its period, source and size
+    assert v("stiction_loop_plant_group", loop="FIC401") == 1.0
+    assert v("stiction_loop_plant_role", loop="FIC101", role="source") == 1.0
+    assert v("stiction_loop_plant_role", loop="FIC401", role="source") == 0.0
+    assert v("stiction_loop_plant_role", loop="FIC401", role="follower") == 1.0
+    assert v("stiction_plant_group_period_seconds", group="1", source="FIC101") == 228.0
+    assert v("stiction_plant_group_loops", group="1", source="FIC101") == 2.0
+    assert v("stiction_plant_group_period_seconds", group="3", source="") == 600.0
     text = generate_latest(reg).decode()
     assert "_created" not in text
 

@@ -19,6 +19,7 @@ from deploy_support import require_tool
 from gateway_helpers import run
 
 from gateway.config import load_config, parse_config
+from gateway.core.plant import PlantGroup, PlantView
 from gateway.outputs.modbus_server.resultmap import COLUMNS, layout_markdown, map_rows
 from gateway.runtime.gateway import Gateway
 from gateway.wire.results import LAYOUT, VERDICT_CODES, block_values
@@ -54,7 +55,7 @@ def test_rows_follow_the_layout() -> None:
     for name, unit, first in (("FIC101", 1, 0), ("FIC102", 2, 300)):
         for f, r in zip(LAYOUT, by_loop[name], strict=True):
             assert (r.unit_id, r.register, r.offset, r.field, r.type) == (
-                unit, first + f.offset, f.offset, f.name, f.type)
+                unit, first + f.offset, f.offset, f.name, f.type_name)
             assert r.word_order == ("little" if f.width == 2 else "-")
             assert (r.unit, r.meaning, r.scale) == (f.unit, f.meaning, f.scale)
             assert r.meaning and r.unit
@@ -92,7 +93,8 @@ def test_result_map_cli_table_and_csv(tmp_path: Path) -> None:
     assert res.stderr == f"{path}: no loop 'FIC999'\n"
 
 
-MBPOLL_TYPES = {"uint16": "3", "float32": "3:float", "uint32": "3:int"}
+MBPOLL_TYPES = {"uint16": "3", "float32": "3:float", "uint32": "3:int",
+                "uint8 (high byte)": "3", "uint8 (low byte)": "3"}
 
 
 def mbpoll_read(mbpoll: str, port: int, row: dict[str, str]) -> float:
@@ -103,6 +105,9 @@ def mbpoll_read(mbpoll: str, port: int, row: dict[str, str]) -> float:
     assert r.returncode == 0, r.stdout + r.stderr
     values = re.findall(r"^\[\d+\]:\s+(\S+)", r.stdout, re.M)
     assert len(values) == 1, r.stdout
+    if row["type"].startswith("uint8"):  # one byte of the register
+        reg = int(values[0])
+        return float(reg >> 8 if "high" in row["type"] else reg & 0xFF)
     return float(values[0])
 
 
@@ -125,7 +130,11 @@ def test_result_map_csv_is_what_mbpoll_reads(tmp_path: Path, word_order: str) ->
             i = gw.store.index["FIC102"]
             result = gw.store.set_result(i, STICKY, t=1_700_000_123.0, window_fill=0.75,
                                          samples=60)
-            want = block_values(result, VERDICT_CODES[Verdict.STICTION])
+            gw.store.set_plant(PlantView((PlantGroup(4, 230.0, "FIC102", ("FIC102", "X")),),
+                                         {"FIC102": (4, "source")}))
+            plant = gw.store.plant_registers(i)
+            assert plant == (4, 1, i + 1)
+            want = block_values(result, VERDICT_CODES[Verdict.STICTION], plant)
             got = {}
             for row in rows:
                 got[row["field"]] = float(row["scale"]) * await asyncio.to_thread(

@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
+import io
+import types
 from pathlib import Path
 
+import numpy as np
+import pytest
+
 from gateway.config import load_config, parse_config
+from gateway.core.plant import PlantGroup, PlantView
+from gateway.core.store import ResultStore
+from gateway.errors import ConfigError
 from plcsim import gateway_config as sim_gateway_config
 from plcsim import load_sim_config, parse_sim_config
+from plcsim.demo import render_table
+from plcsim.sim import PlcSim
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 
@@ -31,3 +41,39 @@ def test_example_plc_sim_config_loads_and_matches_its_gateway_config() -> None:
     gw = load_config(CONFIGS / "plc-sim-gateway.yaml")
     assert [lp.name for lp in sim.loops] == [lp.name for lp in gw.loops]
     assert [lp.address for lp in sim.loops] == [lp.op.address.address for lp in gw.loops]
+
+
+def test_a_plant_scenario_is_served_after_the_loops_and_read_by_its_gateway_config() -> None:
+    """Issue 21: ``plants:`` adds a NAMED_PLANTS plant (its loops prefixed, 4 registers
+    each, after the single loops); the gateway config reads them with their process."""
+    cfg = parse_sim_config({"listen": "127.0.0.1:0", "seed": 3,
+                            "loops": [{"name": "FIC101", "scenario": "healthy"}],
+                            "plants": [{"plant": "sticky-feeds-two", "prefix": "U2.",
+                                        "duration_s": 600}]})
+    assert cfg.loop_names() == ["FIC101", "U2.FIC101", "U2.TIC201", "U2.LIC301",
+                                "U2.PIC401", "U2.FIC102"]
+    gw = sim_gateway_config(cfg)
+    lic = next(lp for lp in gw["loops"] if lp["name"] == "U2.LIC301")
+    assert lic["op"] == {"address": 12, "type": "float32"}
+    assert lic["process"] == "integrating" and lic["result_address"] == 60
+    sim = PlcSim(cfg)
+    first = sim.op[1:].copy()
+    for _ in range(600):  # the precomputed 600 s, then replayed from the start
+        sim.step()
+    assert np.array_equal(sim.op[1:], first) and not np.array_equal(sim.pv[1:], sim.pv[:1])
+    with pytest.raises(ConfigError, match=r"loop name 'U2\.FIC101' is taken"):
+        parse_sim_config({"loops": [{"name": "U2.FIC101", "scenario": "healthy"}],
+                          "plants": [{"plant": "sticky-feeds-two", "prefix": "U2."}]})
+
+
+def test_the_demo_table_names_each_group_its_source_and_each_loops_role() -> None:
+    st = ResultStore(["FIC101", "U2.FIC101", "U2.TIC201"])
+    st.set_plant(PlantView((PlantGroup(1, 179.0, "U2.FIC101", ("U2.FIC101", "U2.TIC201")),),
+                           {"U2.FIC101": (1, "source"), "U2.TIC201": (1, "follower")}))
+    gw = types.SimpleNamespace(store=st, config=types.SimpleNamespace(
+        gateway=types.SimpleNamespace(time_scale=40.0)))
+    out = io.StringIO()
+    render_table(gw, 0.0, out)  # type: ignore[arg-type]
+    text = out.getvalue()
+    assert "plant group 1: a 179 s cycle, source U2.FIC101, loops U2.FIC101, U2.TIC201" in text
+    assert "group 1 source" in text and "group 1 follower" in text

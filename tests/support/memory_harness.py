@@ -114,14 +114,17 @@ def mloop(name: str, device: str, column: int, result_address: int, *,
             "result_address": result_address, **extra}
 
 
-def mconfig(devices: list[dict[str, Any]], loops: list[dict[str, Any]], **gateway: Any
-            ) -> dict[str, Any]:
+def mconfig(devices: list[dict[str, Any]], loops: list[dict[str, Any]], *,
+            plant: dict[str, Any] | None = None, **gateway: Any) -> dict[str, Any]:
     """A raw config: memory devices, servers on free loopback ports, no analysis unless
-    asked, a short reconnect cap."""
+    asked, a short reconnect cap. No plant-wide step unless ``plant`` asks: these tests run
+    the analysis in a thread of the test's process (the gateway: in worker processes),
+    where the plant step's fits would take the polls' interpreter."""
     return {"gateway": {"analysis_interval_s": 1e6, "analysis_workers": 1,
                         "reconnect_max_s": 0.5, **gateway},
             "metrics": {"listen": "127.0.0.1:0"},
             "modbus_server": {"listen": "127.0.0.1:0", "unit_id": 1},
+            "plant": {"enabled": False} if plant is None else plant,
             "devices": devices, "loops": loops}
 
 

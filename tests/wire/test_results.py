@@ -63,16 +63,44 @@ def test_result_block_layout(word_order: str) -> None:
 
 
 def test_the_layout_fits_the_block_and_the_codes_are_the_documented_ones() -> None:
-    used = [r for f in LAYOUT for r in range(f.offset, f.offset + f.width)]
-    assert len(used) == len(set(used)) and max(used) < RESULT_BLOCK_SIZE == 20
+    # a byte of a register counts as half of it: (register, byte) pairs never overlap
+    used = [(r, half) for f in LAYOUT for r in range(f.offset, f.offset + f.width)
+            for half in ((f.byte,) if f.byte else ("high", "low"))]
+    assert len(used) == len(set(used)) and max(r for r, _ in used) < RESULT_BLOCK_SIZE == 20
     assert [(f.name, f.offset, f.type) for f in LAYOUT][:2] == [("code", 0, "uint16"),
                                                               ("seq", 1, "uint16")]
     assert VERDICT_CODES == {"none": 0, "not_oscillating": 1, "no_stiction": 2,
                              "undetermined": 3, "stiction": 4, "bad_data": 5, "stale": 6,
-                             "valve_not_responding": 7, "warming_up": 8, "device_down": 9}
+                             "valve_not_responding": 7, "warming_up": 8, "device_down": 9,
+                             "propagated": 10}
     st = sample_store(latest=False)
     assert [verdict_code(r) for r in st.results] == [4, 2, 0]
     assert verdict_code(st.results[0], stale=True) == 6
+
+
+# the addresses every field had before issue 21: they never move
+BEFORE_ISSUE_21 = {"code": (0, "uint16"), "seq": (1, "uint16"),
+                   "stiction_index": (2, "float32"), "fd_percent": (4, "float32"),
+                   "fs_percent": (6, "float32"), "period_s": (8, "float32"),
+                   "jump_percent": (10, "float32"), "timestamp": (12, "uint32"),
+                   "window_fill": (14, "float32"), "confidence": (16, "float32")}
+
+
+def test_the_plant_registers_are_new_addresses_and_read_back() -> None:
+    fields = {f.name: (f.offset, f.type) for f in LAYOUT}
+    assert {k: fields[k] for k in BEFORE_ISSUE_21} == BEFORE_ISSUE_21
+    plant = {f.name: (f.offset, f.type, f.byte) for f in LAYOUT if f.name.startswith("plant")}
+    assert plant == {"plant_role": (18, "uint8", "high"), "plant_group": (18, "uint8", "low"),
+                     "plant_source": (19, "uint16", "")}
+    st = sample_store(latest=False)
+    for word_order in ("big", "little"):
+        regs = result_block(st.results[0], code=4, word_order=word_order, plant=(3, 2, 417))
+        assert regs[18] == 2 * 256 + 3 and regs[19] == 417
+        b = decode_block(regs, word_order)
+        assert (b["plant_group"], b["plant_role"], b["plant_source"]) == (3, 2, 417)
+        assert b["fd_percent"] == pytest.approx(27.0) and b["reserved"] == 0
+    none = decode_block(result_block(None, code=0))
+    assert (none["plant_group"], none["plant_role"], none["plant_source"]) == (0, 0, 0)
 
 
 def test_sequence_numbers_wrap_and_negative_times_read_zero() -> None:

@@ -103,7 +103,8 @@ class ResultServer:
         st = self.store
         code = verdict_code(st.results[i], bool(st.stale[i]), bool(st.down[i]))
         self._image_of[i][a:a + RESULT_BLOCK_SIZE] = result_block(
-            st.results[i], code=code, word_order=self.settings.word_order)
+            st.results[i], code=code, word_order=self.settings.word_order,
+            plant=st.plant_registers(i))
 
     async def prepare(self, config: Config) -> Swap | None:
         """Bind the new ``listen`` address, if it moved, before a reload swaps (OSError if

@@ -52,7 +52,7 @@ def map_rows(config: Config, loops: list[str] | None = None) -> Iterator[MapRow]
         unit = server.unit_id if lp.result_unit_id is None else lp.result_unit_id
         for f in LAYOUT:
             yield MapRow(lp.name, unit, lp.result_address + f.offset, f.offset, f.name,
-                         f.type, server.word_order if f.width > 1 else "-", f.scale,
+                         f.type_name, server.word_order if f.width > 1 else "-", f.scale,
                          f.unit, f.meaning)
 
 
@@ -76,7 +76,8 @@ def layout_markdown() -> str:
     """The table of one block (docs/modbus-map.md, "One block of 20 registers per loop")."""
     lines = ["| offset | registers | type | unit | content |", "|---|---|---|---|---|"]
     for f in LAYOUT:
-        lines.append(f"| +{f.offset} | {f.width} | {f.type} | {f.unit} | {f.meaning} |")
+        regs = f"{f.width}" if f.type != "uint8" else f"{f.byte} byte"
+        lines.append(f"| +{f.offset} | {regs} | {f.type} | {f.unit} | {f.meaning} |")
     end = max(f.offset + f.width for f in LAYOUT)
     if end < RESULT_BLOCK_SIZE:
         lines.append(f"| +{end}..+{RESULT_BLOCK_SIZE - 1} | {RESULT_BLOCK_SIZE - end} | - | "

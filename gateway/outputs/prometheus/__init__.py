@@ -16,6 +16,7 @@ from ..base import Binding, Swap
 from .collector import StoreCollector
 from .devices import GatewayMetrics
 from .http import MetricsServer
+from .plant import PlantCollector
 
 __all__ = ["GatewayMetrics", "MetricsServer", "PrometheusSink", "StoreCollector",
            "create_sink"]
@@ -77,6 +78,8 @@ class PrometheusSink:
         if self.collector is None:
             self.collector = StoreCollector(binding.store)
             self.registry.register(self.collector)
+            self.registry.register(PlantCollector(
+                lambda: self.collector.store if self.collector is not None else None))
         else:
             self.collector.store = binding.store
         self.metrics.set_identity(cfg.gateway.site, cfg.gateway.area)

@@ -48,7 +48,14 @@ _FAMILIES = (  # name, help; in the order they are yielded
      "weighted vote; >= 0.7 is a stiction verdict)."),
     ("op_percent", "Latest controller output, percent of valve span."),
     ("pv", "Latest process variable, process units."),
+    ("plant_group", "Number of the plant-wide group (a cycle shared with other loops of its "
+     "poll interval) the loop is in; 0 in none."),
+    ("plant_role", "1 for the loop's plant-wide role (source: its valve drives the group's "
+     "cycle; follower: it carries a cycle from elsewhere), 0 for the other; both 0 in no "
+     "group."),
 )
+_EXTRA_LABEL = {"verdict": "verdict", "plant_role": "role"}  # the label beside loop
+ROLES = ("source", "follower")
 _FAST_ESCAPINGS = (om.UNDERSCORES, om.ALLOWUTF8)  # legacy names stay as they are
 
 
@@ -63,7 +70,7 @@ class StoreCollector(Collector):
         if getattr(self._rendering, "on", False):
             return
         for (name, doc), rows in zip(_FAMILIES, rows_of(self.store.snapshot()), strict=True):
-            labels = ["loop", "verdict"] if name == "verdict" else ["loop"]
+            labels = ["loop", _EXTRA_LABEL[name]] if name in _EXTRA_LABEL else ["loop"]
             family = GaugeMetricFamily(f"{PREFIX}_loop_{name}", doc, labels=labels)
             for values, value in rows:
                 family.add_metric(list(values), value)
@@ -83,7 +90,7 @@ class StoreCollector(Collector):
         lines: list[str] = []
         for (name, doc), rows in zip(_FAMILIES, rows_of(self.store.snapshot()), strict=True):
             lines.append(_head(f"{PREFIX}_loop_{name}", doc, encoder, openmetrics))
-            key = ("loop", "verdict") if name == "verdict" else ("loop",)
+            key = ("loop", _EXTRA_LABEL[name]) if name in _EXTRA_LABEL else ("loop",)
             prefix = f"{PREFIX}_loop_{name}{{"
             lines.extend([f"{prefix}{_labels(key, values)}}} {_number(value)}\n"
                           for values, value in rows])
@@ -96,10 +103,14 @@ class StoreCollector(Collector):
 def rows_of(st: StoreSnapshot) -> list[Rows]:
     """Per family of :data:`_FAMILIES`, its samples: (label values, value)."""
     out: list[Rows] = [[] for _ in _FAMILIES]
-    si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv = out
+    si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role = out
+    roles = st.plant.roles
     for i, name in enumerate(st.loops):
         current = st.verdict_name(i)
         verdict.extend(((name, v), 1.0 if v == current else 0.0) for v in VERDICTS)
+        number, its_role = roles.get(name, (0, ""))
+        group.append(((name,), float(number)))
+        role.extend(((name, r), 1.0 if r == its_role else 0.0) for r in ROLES)
         _add(op, name, st.latest_op[i])
         _add(pv, name, st.latest_pv[i])
         res = st.results[i]
