@@ -7,7 +7,9 @@
 3. In each group, the members ranked as its source (:mod:`.source`); the top one named
    the source when its own valve evidence is enough, else the group has no loop source.
 4. Per loop, its role: ``source``, ``follower`` or none (not in any group); a loop in two
-   groups takes its role from the one it carries most strongly.
+   groups takes its role from the one it carries most strongly. Besides the named source,
+   a member whose own valve evidence would name it too is a source of its own (two sticky
+   valves at one period): its ``LoopRole.source`` is itself.
 
 :meth:`PlantAssessment.apply` turns the per-loop assessments into plant-aware ones: a
 follower called ``stiction`` becomes ``propagated`` (the reason names the source, or says
@@ -58,6 +60,12 @@ class Group:
     ranking: tuple[MemberEvidence, ...]
     source: str | None
     reason: str
+    also_sources: tuple[str, ...] = ()
+    """Loops besides ``source`` whose own valve evidence names them a source too: a second
+    sticky valve cycling at the same period (two flow loops with one valve model on one
+    PLC), which a shared period alone cannot tell from a follower. Never a declared outer
+    loop of a cascade (its inner loop's valve moves it), never in a group without a loop
+    source."""
 
     @property
     def loops(self) -> tuple[str, ...]:
@@ -224,7 +232,8 @@ def _group(number: int, g: RawGroup, sigs: _Signals, *, ts: float,
     if named_source(top):
         reason = (f"{top.loop} is the source of the {period_s:.0f} s cycle shared by "
                   f"{len(evidence)} loops: {top.note()}")
-        return Group(number, period_s, members, tuple(ranking), top.loop, reason)
+        also = tuple(e.loop for e in ranking[1:] if named_source(e) and e.loop not in cascades)
+        return Group(number, period_s, members, tuple(ranking), top.loop, reason, also)
     reason = (f"no loop analysed here is the source of the {period_s:.0f} s cycle shared by "
               f"{len(evidence)} loops (best candidate {top.loop}: {top.note()}): it enters "
               "from outside, or from a loop not read")
@@ -239,6 +248,8 @@ def _roles(names: list[str], groups: list[Group]) -> dict[str, LoopRole]:
             if m.kind != "loop" or m.strength <= best.get(m.name, -1.0):
                 continue
             best[m.name] = m.strength
-            role = "source" if m.name == g.source else "follower"
-            roles[m.name] = LoopRole(m.name, g.number, role, g.source)
+            if m.name == g.source or m.name in g.also_sources:
+                roles[m.name] = LoopRole(m.name, g.number, "source", m.name)
+            else:
+                roles[m.name] = LoopRole(m.name, g.number, "follower", g.source)
     return roles

@@ -140,3 +140,23 @@ def test_evidence_is_kept_when_a_verdict_is_propagated() -> None:
     assert a.to_dict()["evidence"][0]["test"] == "si_op"
     assert Assessment.from_dict({**a.to_dict(), "verdict": "propagated"}).verdict == \
         Verdict.PROPAGATED
+
+
+def test_two_independent_sticky_valves_at_one_period_are_both_sources() -> None:
+    """Two flow loops with the same sticky valve on one PLC cycle at one period: a shared
+    period cannot tell them from source and follower, their own valve evidence can; neither
+    is called propagated (the fleet's plant-a, tests/deploy/test_fleet_live.py)."""
+    from stiction import analyze  # noqa: PLC0415
+    from stiction.scenarios.named import scenario, simulate  # noqa: PLC0415
+
+    runs = {n: simulate(scenario("table4-case2"), noise=0.02, seed=s)
+            for n, s in (("FIC101", 7), ("FIC102", 8))}
+    loops = {n: (r.op, r.pv) for n, r in runs.items()}
+    before = {n: analyze(op, pv, ts=1.0) for n, (op, pv) in loops.items()}
+    assert all(a.verdict == Verdict.STICTION for a in before.values()), before
+    view = analyze_plant(loops, ts=1.0, assessments=before)
+    after = view.apply(before)
+    for n in loops:
+        assert after[n] == before[n]
+        if view.roles[n].group is not None:
+            assert view.roles[n].role == "source" and view.roles[n].source == n
