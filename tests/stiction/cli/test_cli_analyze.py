@@ -13,6 +13,7 @@ from detector_fixtures import write_loop_csv
 
 from stiction import Assessment, Verdict, cli
 from stiction.cli import main
+from stiction.cli import reproduce as cli_reproduce
 from stiction.paper.reproduce import reproduce
 from stiction.paper.tables import PAPER_ROWS
 
@@ -233,7 +234,7 @@ def test_reproduce_prints_paper_beside_ours(monkeypatch: pytest.MonkeyPatch,
     def table4_only(**kw: object) -> object:
         return reproduce(rows=[r for r in PAPER_ROWS if r.table == 4], **kw)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(cli, "reproduce", table4_only)
+    monkeypatch.setattr(cli_reproduce, "reproduce", table4_only)
     assert main(["reproduce", "--noise", "0"]) == 0
     out = capsys.readouterr().out
     assert "PV noise SD 0," in out
