@@ -21,7 +21,14 @@ means any verdict but ``undetermined`` and ``bad_data``.
 
 SI only: He et al. (2007) alone, as the product had it before several tests: an ACF
 oscillation on OP (PV for integrating loops) with at least 2.5 cycles of at least 8
-samples, and SI >= 0.6.
+samples, and SI >= 0.6. vote: the nine tests' weighted vote (stiction.diagnosis.combine,
+stiction at >= 0.7), the decision before the learned one (issue 24), on the same evidence
+``analyze`` gathered: the "before" beside ``analyze``'s "after".
+
+**corpus**: the development corpus (``python -m bench corpus``) per source and cause, the vote
+beside the learned decision, from the features ``python -m bench.train`` cached (skipped
+until it has run). The learned decision was fitted on this corpus, so these are in-sample;
+the held-out figures are ``python -m bench.train``'s.
 
 ``python -m bench real_data`` runs all three; ``REAL_DATA_SIMS=N`` sets the simulated
 records per cause and seed (default 14, three seeds). Simulated records are cached in
@@ -45,7 +52,9 @@ import numpy as np
 
 from stiction import Assessment, Verdict, analyze
 from stiction.detectors.stiction_index import STICTION_SI, stiction_index
+from stiction.diagnosis import combine
 from stiction.diagnosis.evidence import TESTS
+from stiction.diagnosis.model import load as load_model
 from stiction.scenarios import realistic
 from stiction.signal.oscillation import MIN_PERIOD, detect_oscillation
 
@@ -163,6 +172,19 @@ def full(c: Case, process: str) -> str:
     return str(a.verdict)
 
 
+def vote(c: Case, process: str) -> str:
+    """The weighted vote on the evidence ``analyze`` gathered (the module doc)."""
+    a = _ASSESSED.get((c.name, process)) or analyze(c.op, c.pv, ts=c.ts, process=process)
+    if not a.evidence or a.verdict not in STICKY_OR_NOT:
+        return str(a.verdict)  # a gate decided (bad data, not responding, ...)
+    conf = combine.confidence(a.evidence)
+    if conf >= combine.STICTION_CONFIDENCE:
+        return str(Verdict.STICTION)
+    if conf <= combine.NO_STICTION_CONFIDENCE:
+        return str(Verdict.NO_STICTION if a.oscillating else Verdict.NOT_OSCILLATING)
+    return str(Verdict.UNDETERMINED)
+
+
 def _tests(cases: list[Case], process: Callable[[Case], str],
            key: Callable[[Case], str]) -> None:
     """What each test said, by group of cases: '+' votes (says stiction) and '-' votes (says
@@ -182,7 +204,10 @@ def _tests(cases: list[Case], process: Callable[[Case], str],
         print(f"    {label:<24}{cells} n={len(members)}")
 
 
-DETECTORS: dict[str, Callable[[Case, str], str]] = {"SI only": si_only, "analyze": full}
+DETECTORS: dict[str, Callable[[Case, str], str]] = {"SI only": si_only, "analyze": full,
+                                                     "vote": vote}  # vote after analyze
+STICKY_OR_NOT = (Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED,
+                 Verdict.NOT_OSCILLATING)
 
 
 # ------------------------------------------------------------------------------- scoring
@@ -327,7 +352,32 @@ def main() -> None:
     plant()
     tep()
     sims(int(os.environ.get("REAL_DATA_SIMS", "14")))
+    corpus()
     print(f"({time.perf_counter() - t0:.0f} s)")
+
+
+def corpus() -> None:
+    """Per source and cause: the vote beside the learned decision (the module doc)."""
+    from bench import train  # noqa: PLC0415  (needs the built corpus and its cached features)
+
+    rows = train.cached_rows()
+    if rows is None:
+        print("== corpus: skipped (run python -m bench corpus, then python -m bench.train) ==")
+        return
+    model = load_model()
+    print(f"== corpus ({len(rows)} windows; in-sample for the learned decision, held out: "
+          "python -m bench.train) ==")
+    print(f"  {'source':<12} {'cause':<14} {'n':>6}  called stiction: vote -> analyze")
+    table: dict[tuple[str, str], list[int]] = collections.defaultdict(lambda: [0, 0, 0])
+    for r in rows:
+        cell = table[(r.source, r.cause_class)]
+        cell[0] += 1
+        if r.x is not None:
+            cell[1] += train.vote(r.x) >= combine.STICTION_CONFIDENCE
+            cell[2] += model.probability(r.x) >= model.stiction_at
+    for (source, cause), (n, before, after) in sorted(table.items()):
+        print(f"  {source:<12} {cause:<14} {n:>6}  {before:>5} ({before / n:4.0%}) -> "
+              f"{after:>5} ({after / n:4.0%})")
 
 
 if __name__ == "__main__":

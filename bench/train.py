@@ -120,6 +120,18 @@ def vote(x: np.ndarray) -> float:
     return combine.confidence_of(tests, [int(x[INDEX[f"{t}.vote"]]) for t in tests])
 
 
+def cached_rows() -> list[Row] | None:
+    """The rows of the built corpus if :func:`rows` has cached them for today's code, else
+    None (nothing is analysed)."""
+    from bench.corpus import load_windows  # noqa: PLC0415  (the built corpus)
+
+    windows = load_windows() + _train_scenarios.windows(CACHE / "corpus")
+    if not windows:
+        return None
+    keys = hashlib.sha256("".join(w.key for w in windows).encode()).hexdigest()[:16]
+    return rows(windows) if (CACHE / f"train-{_code_key()}-{keys}.pickle").exists() else None
+
+
 def _weights(rs: Sequence[Row]) -> np.ndarray:
     """Every source the same total, sticky and other the same within a source."""
     count = collections.Counter((r.source, r.cause_class == "stiction") for r in rs)
