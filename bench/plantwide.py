@@ -203,6 +203,73 @@ def report(totals: dict[str, Any]) -> None:
           f"{totals.get('quiet', {}).get('a loop named', 0)}")
 
 
+def tep_runs() -> list[tuple[Any, dict[str, Assessment]]]:
+    """The corpus's TEP plant runs, every loop analysed (self-regulating: the analysis is
+    told nothing); cached by stiction's code and the runs. Empty without the corpus."""
+    from bench.corpus import load_plant_runs  # noqa: PLC0415  (the built corpus)
+    from bench.train import _code_key  # noqa: PLC0415
+
+    runs = [r for r in load_plant_runs() if r.source.startswith("tep-mode")]
+    if not runs:
+        return []
+    key = hashlib.sha256((_code_key() + "".join(r.id for r in runs)).encode()).hexdigest()
+    path = CACHE / f"plantwide-tep-{key[:16]}.pickle"
+    if path.exists():
+        with path.open("rb") as fh:
+            cached: list[tuple[Any, dict[str, Assessment]]] = pickle.load(fh)
+        return cached
+    out = [(r, {n: analyze(op, pv, ts=r.ts) for n, (op, pv) in r.loops.items()})
+           for r in runs]
+    with path.open("wb") as fh:
+        pickle.dump(out, fh)
+    return out
+
+
+def tep() -> None:
+    """Issue 21's TEP lines: a sticking valve whose cycle reaches other loops (its loop is
+    in a group) ranked first, no other loop called ``stiction``; without one, no loop named
+    the source of a cycle with a ``stiction`` verdict of its own."""
+    c: collections.Counter[str] = collections.Counter()
+    for run_, before in tep_runs():
+        view = analyze_plant(dict(run_.loops), ts=run_.ts, indicators=run_.indicators,
+                             assessments=before)
+        after = view.apply(before)
+        sticky = set(run_.sticky_loops)
+        for name in before:
+            if name not in sticky:
+                c["others called before"] += before[name].verdict == Verdict.STICTION
+                c["others called after"] += after[name].verdict == Verdict.STICTION
+        if sticky:
+            c["sticky runs"] += 1
+            for src in sticky:
+                g = next((g for g in view.groups if src in g.loops), None)
+                if g is None:
+                    continue
+                c["reaching others"] += 1
+                c["ranked first"] += g.ranking[0].loop == src
+                c["named"] += g.source == src or src in g.also_sources
+                c["sticky lost"] += before[src].verdict == Verdict.STICTION and \
+                    after[src].verdict != Verdict.STICTION
+        else:
+            c["clean runs"] += 1
+            c["valve source named"] += sum(
+                1 for g in view.groups for n in (g.source, *g.also_sources)
+                if n is not None and after[n].verdict == Verdict.STICTION)
+    if not c:
+        print("== plant-wide: TEP runs: skipped (python -m bench corpus builds them) ==")
+        return
+    print(f"== plant-wide: TEP runs ({c['sticky runs']} with a sticking valve, "
+          f"{c['clean runs']} without) ==")
+    print(f"  sticking valve's cycle in a group: {c['reaching others']}; ranked first "
+          f"{_pct(c['ranked first'], c['reaching others'])}, named "
+          f"{_pct(c['named'], c['reaching others'])}, its stiction call lost "
+          f"{c['sticky lost']}")
+    print(f"  other loops called stiction, before -> after the plant view: "
+          f"{c['others called before']} -> {c['others called after']}")
+    print(f"  runs without a sticking valve: a loop named source with a stiction verdict "
+          f"{c['valve source named']} times")
+
+
 def main() -> None:
     t0 = time.perf_counter()
     count = int(os.environ.get("PLANTWIDE_PLANTS", "30"))
@@ -211,6 +278,7 @@ def main() -> None:
         print(f"== plant-wide: own plants, {label} seeds {seeds} ({count} per kind and "
               "seed) ==")
         report(run(count, seeds))
+    tep()
     print(f"({time.perf_counter() - t0:.0f} s)")
 
 

@@ -180,8 +180,10 @@ def vote(c: Case, process: str) -> str:
     conf = combine.confidence(a.evidence)
     if conf >= combine.STICTION_CONFIDENCE:
         return str(Verdict.STICTION)
+    if not a.oscillating and conf <= 0.5:  # as analyze said it then
+        return str(Verdict.NOT_OSCILLATING)
     if conf <= combine.NO_STICTION_CONFIDENCE:
-        return str(Verdict.NO_STICTION if a.oscillating else Verdict.NOT_OSCILLATING)
+        return str(Verdict.NO_STICTION)
     return str(Verdict.UNDETERMINED)
 
 

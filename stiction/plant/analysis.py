@@ -14,7 +14,10 @@
 :meth:`PlantAssessment.apply` turns the per-loop assessments into plant-aware ones: a
 follower called ``stiction`` becomes ``propagated`` (the reason names the source, or says
 there is none among the loops, and the shared period); a named source keeps its verdict
-and size; a loop in no group keeps its assessment unchanged.
+and size, and so does the top candidate of a group with no source named unless an
+indicator carries the cycle about as strongly as the strongest loop (the plant view has no better
+explanation than its own valve: on the TEP plant runs, demoting it lost 37 of the sticking
+valves' calls); a loop in no group keeps its assessment.
 """
 
 from __future__ import annotations
@@ -36,6 +39,9 @@ from .spectra import Spectra, spectra
 __all__ = ["Group", "LoopRole", "Member", "PlantAssessment", "analyze_plant"]
 
 ROLES = ("source", "follower")
+OUTSIDE = 0.9
+"""A group's cycle is seen entering from outside the loops when a signal that is no loop's
+carries it at least this share of the strongest loop's strength (:attr:`Group.outside`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +82,15 @@ class Group:
         """No loop analysed is the source: the cycle enters from outside."""
         return self.source is None
 
+    @property
+    def outside(self) -> bool:
+        """A signal that is no loop's carries the cycle about as strongly as the strongest
+        loop, at least :data:`OUTSIDE` of it (a header pressure, a utility temperature): the
+        cycle is seen entering from there."""
+        loops = [m.strength for m in self.members if m.kind == "loop"]
+        others = [m.strength for m in self.members if m.kind != "loop"]
+        return bool(others) and max(others) >= OUTSIDE * max(loops, default=0.0)
+
 
 @dataclasses.dataclass(frozen=True)
 class LoopRole:
@@ -100,13 +115,16 @@ class PlantAssessment:
 
     def apply(self, assessments: Mapping[str, Assessment]) -> dict[str, Assessment]:
         """The per-loop assessments with the plant view: a follower's ``stiction`` becomes
-        ``propagated`` (no size: it is not its valve's); everything else unchanged."""
+        ``propagated`` (no size: it is not its valve's), but for the top candidate of a
+        group with no source named; everything else unchanged."""
         out = dict(assessments)
         for name, a in assessments.items():
             role = self.roles.get(name)
             if role is None or role.role != "follower" or a.verdict != Verdict.STICTION:
                 continue
             g = self.group(role.group or 0)
+            if g.source is None and g.ranking[0].loop == name and not g.outside:
+                continue  # the likeliest source of a group with none named: its own call
             where = (f"its source is {g.source}" if g.source is not None else
                      "its source is no loop analysed here (a cycle from outside, or from a "
                      "loop not read)")

@@ -24,6 +24,7 @@ from gateway.config import load_config, parse_config
 from gateway.core.points import Quality
 from gateway.inputs.memory import memory_device
 from gateway.runtime.gateway import Gateway
+from gateway.wire.results import VERDICT_CODES
 
 CASES = Path(__file__).resolve().parents[1] / "cases"
 BAD = (CASES / "bad-file" / "gateway.yaml").read_text()
@@ -82,8 +83,11 @@ def _write(path: Path, data: dict[str, Any]) -> Path:
 
 
 def _verdict(reg: CollectorRegistry, name: str) -> float | None:
-    return reg.get_sample_value("stiction_loop_verdict",
-                                {"loop": name, "verdict": "warming_up"})
+    """1.0 when the loop's verdict is published (whichever it is: under load a round may
+    have turned warming_up into bad_data), None when the loop has no verdict series."""
+    values = [s.value for fam in reg.collect() if fam.name == "stiction_loop_verdict"
+              for s in fam.samples if s.labels.get("loop") == name]
+    return None if not values else max(values)
 
 
 def _thread() -> ThreadPoolExecutor:
@@ -114,6 +118,8 @@ def test_a_running_gateway_reloads_and_refuses_bad_files(
                                 zip(gw.store.loops, gw.store.results, strict=True)}
             out["metrics_after"] = {n: _verdict(reg, n) for n in "ABCDE"}
             out["registers"] = gw.result_server.images[1][:80].tolist()
+            a_now = gw.store.results[gw.store.index["A"]]
+            out["code_A"] = VERDICT_CODES[a_now.assessment.verdict] if a_now else None
             polls = gw.pollers[0].polls
             (tmp_path / "bad.yaml").write_text(BAD)
             out["bad_reload"] = await gw.reload(tmp_path / "bad.yaml")
@@ -135,7 +141,7 @@ def test_a_running_gateway_reloads_and_refuses_bad_files(
     assert out["metrics_before"] == {"A": 1.0, "B": 1.0, "C": 1.0, "D": None, "E": 1.0}
     assert out["metrics_after"]["B"] is None and out["metrics_after"]["A"] == 1.0
     regs = out["registers"]
-    assert regs[0] == 8 and regs[1] == out["seq_after"]["A"]  # A: warming_up, seq
+    assert regs[0] == out["code_A"] and regs[1] == out["seq_after"]["A"]  # A: verdict, seq
     assert regs[20:40] == [0] * 20  # B's block is empty
     assert regs[40] == 0 and regs[60] == 0  # C and D: no result yet
     # plc's points changed: a new source (connection); plc2 kept its connection
