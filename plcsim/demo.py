@@ -18,8 +18,9 @@ group, names U2.FIC101 its source and the others followers; the table says so pe
 lists the groups above it.
 
 At the default 40x, one wall second is 40 process seconds: the sticky flow loop shows
-``stiction`` after about 10 s of wall time, the level loop after about 25 s, the plant's
-group after about 30 s.
+``stiction`` after a few seconds of wall time, the level loop after about 50 s (once its
+window no longer holds the simulation's start-up), the plant's group after about 30 s
+(U2.FIC101's own verdict stays ``undetermined``, about 0.74).
 """
 
 from __future__ import annotations
