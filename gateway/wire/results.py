@@ -113,8 +113,8 @@ LAYOUT: tuple[Field, ...] = (
     Field("window_fill", 14, "float32", "0-1",
           "window fill: fraction of the loop's window holding good samples"),
     Field("confidence", 16, "float32", "0-1",
-          "confidence of stiction, the analysis's weighted vote of its tests (>= 0.7 is a "
-          "stiction verdict, <= 0.3 no_stiction); NaN when no test ran (bad data, valve "
+          "confidence of stiction, the analysis's learned decision from its tests (>= 0.87 "
+          "is a stiction verdict, <= 0.5 no_stiction); NaN when no test ran (bad data, valve "
           "not responding)"),
     Field("plant_role", 18, "uint8", "code",
           "plant-wide role: 0 in no group, 1 source (the loop whose valve drives a cycle "

@@ -44,8 +44,8 @@ _FAMILIES = (  # name, help; in the order they are yielded
     ("verdict", "1 for the loop's current verdict, 0 for the others."),
     ("last_assessment_timestamp_seconds", "Unix time of the latest assessment."),
     ("window_fill_ratio", "Fraction of the window holding good samples."),
-    ("confidence_ratio", "Confidence of stiction in the latest assessment, 0-1 (the tests' "
-     "weighted vote; >= 0.7 is a stiction verdict)."),
+    ("confidence_ratio", "Confidence of stiction in the latest assessment, 0-1 (the "
+     "learned decision from the tests; >= 0.87 is a stiction verdict)."),
     ("op_percent", "Latest controller output, percent of valve span."),
     ("pv", "Latest process variable, process units."),
     ("plant_group", "Number of the plant-wide group (a cycle shared with other loops of its "
