@@ -1,7 +1,7 @@
 """End to end: plc-sim → gateway (real stiction.analyze in worker processes) → a Modbus
 client reads the result registers and an HTTP client reads /metrics.
 
-The demo's loops run at 100x real time for 29 s of wall time (2900 process s: every window
+The demo's loops run at 160x real time for 18.5 s of wall time (2960 process s: every window
 full, the level loop's 2400 s too; on a window still holding the simulation's start-up the
 learned decision leaves the level valve `undetermined`, as the demo shows in its first
 minute).
@@ -28,8 +28,8 @@ from plcsim.demo import DEMO_LOOPS, demo_configs
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.timing]
 
-WALL_S = 29.0
-TIME_SCALE = 100.0
+WALL_S = 18.5
+TIME_SCALE = 160.0
 TRUE_FD = {"FIC101": 0.27, "LIC201": 0.27}  # fraction of span, the scenarios' valves
 EXPECTED = {
     "FIC101": {"stiction"},
