@@ -90,10 +90,15 @@ def _code_key() -> str:
     return h.hexdigest()[:16]
 
 
+def _rows_path(windows: Sequence[Any]) -> Path:
+    """Where :func:`rows` caches the analysed windows: by stiction/'s code and the keys."""
+    keys = hashlib.sha256("".join(w.key for w in windows).encode()).hexdigest()[:16]
+    return CACHE / f"train-{_code_key()}-{keys}.pickle"
+
+
 def rows(windows: Sequence[Any]) -> list[Row]:
     """Every window analysed (cached by the code of stiction/ and the windows' keys)."""
-    keys = hashlib.sha256("".join(w.key for w in windows).encode()).hexdigest()[:16]
-    path = CACHE / f"train-{_code_key()}-{keys}.pickle"
+    path = _rows_path(windows)
     if path.exists():
         with path.open("rb") as fh:
             return [Row(*t) for t in pickle.load(fh)]
@@ -128,8 +133,7 @@ def cached_rows() -> list[Row] | None:
     windows = load_windows() + _train_scenarios.windows(CACHE / "corpus")
     if not windows:
         return None
-    keys = hashlib.sha256("".join(w.key for w in windows).encode()).hexdigest()[:16]
-    return rows(windows) if (CACHE / f"train-{_code_key()}-{keys}.pickle").exists() else None
+    return rows(windows) if _rows_path(windows).exists() else None
 
 
 def _weights(rs: Sequence[Row]) -> np.ndarray:
@@ -181,13 +185,18 @@ def export(clf: Any, hi: float, lo: float, meta: dict[str, Any]) -> dict[str, An
             "no_stiction_at": lo, "meta": meta}
 
 
-def held_out(rs: Sequence[Row], setting: dict[str, Any]) -> dict[int, float]:
-    """Every scored window's probability from the model fitted without its source."""
+def _data(rs: Sequence[Row]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The scored windows' indices, features, labels (sticky) and weights."""
     idx = np.array(_scored(rs))
     x = np.array([rs[i].x for i in idx])
     y = np.array([rs[i].cause_class == "stiction" for i in idx])
+    return idx, x, y, _weights([rs[i] for i in idx])
+
+
+def held_out(rs: Sequence[Row], setting: dict[str, Any]) -> dict[int, float]:
+    """Every scored window's probability from the model fitted without its source."""
+    idx, x, y, w = _data(rs)
     src = np.array([rs[i].source for i in idx])
-    w = _weights([rs[i] for i in idx])
     out: dict[int, float] = {}
     for s in sorted(set(src)):
         train = src != s
@@ -271,10 +280,8 @@ def train(rs: Sequence[Row]) -> tuple[dict[str, Any], dict[int, float]]:
             best = (worst, setting, p, hi, lo)
     assert best is not None
     worst, setting, p, hi, lo = best
-    idx = _scored(rs)
-    x = np.array([rs[i].x for i in idx])
-    y = np.array([rs[i].cause_class == "stiction" for i in idx])
-    clf = fit(x, y, _weights([rs[i] for i in idx]), setting)
+    idx, x, y, w = _data(rs)
+    clf = fit(x, y, w, setting)
     meta = {"setting": setting, "windows": len(idx), "sticky": int(y.sum()),
             "worst_fold_found": round(worst, 3), "trained": time.strftime("%Y-%m-%d"),
             "by": "python -m bench.train --write (bench/train.py)"}
