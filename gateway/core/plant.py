@@ -28,9 +28,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stiction import Assessment
-from stiction.plant import PlantAssessment, analyze_plant
 
 from .points import Quality
+
+if TYPE_CHECKING:  # the analysis only in the worker (it brings in scipy.signal, ~0.5 s)
+    from stiction.plant import PlantAssessment
 
 if TYPE_CHECKING:  # windows -> store -> plant: the type only
     from .windows import LoopGroup
@@ -120,6 +122,8 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
 
 def analyze_plant_job(job: PlantJob) -> PlantAssessment:
     """Worker entry: the plant analysis of one job."""
+    from stiction.plant import analyze_plant  # noqa: PLC0415  (see the imports)
+
     loops = {name: (job.op[k], job.pv[k]) for k, name in enumerate(job.names)}
     return analyze_plant(loops, ts=job.ts, assessments=job.assessments,
                          processes=job.processes)
