@@ -42,9 +42,14 @@ from .config import parse_sim_config
 from .gateway_yaml import gateway_config
 from .sim import PlcSim
 
-__all__ = ["DEMO_LOOPS", "DEMO_PLANT", "demo_configs", "run_demo"]
+__all__ = ["DEMO_LOOPS", "DEMO_PLANT", "demo_configs", "demo_sim", "run_demo"]
 
 DEMO_TIME_SCALE = 40.0
+DEMO_WARM_UP_S = 1200.0
+"""Process seconds the simulated PLC runs before the gateway starts polling it: the loops'
+start-up (their set-point steps at 20 s, a sticky valve's first long stick while OP winds
+up) is over, as at a plant that was running when the gateway came, so every window the
+gateway fills holds steady operation and a verdict changes only when the evidence does."""
 DEMO_ANALYSIS_INTERVAL_S = 120.0  # process seconds (3 s of wall time at 40x)
 DEMO_NOISE = 0.02
 # The demo is deterministic in its simulated loops (seeded). Seeds 1-8 were checked offline
@@ -92,6 +97,15 @@ def demo_configs(*, time_scale: float = DEMO_TIME_SCALE, metrics_port: int = 910
                         metrics_listen=f"127.0.0.1:{metrics_port}",
                         result_listen=f"127.0.0.1:{result_port}")
     return sim, gw
+
+
+def demo_sim(sim_raw: dict) -> PlcSim:  # type: ignore[type-arg]
+    """The demo's simulated PLC (``demo_configs``' first part), run ``DEMO_WARM_UP_S``
+    process seconds before it serves."""
+    sim = PlcSim(parse_sim_config(sim_raw, "<demo plc-sim>"))
+    for _ in range(round(DEMO_WARM_UP_S / sim.cfg.ts)):
+        sim.step()
+    return sim
 
 
 def _fmt(x: float | None, scale: float = 1.0, digits: int = 2) -> str:
@@ -158,8 +172,7 @@ async def run_demo(duration: float | None = None, *, out: TextIO = sys.stdout,
     sim_raw, gw_raw = demo_configs(time_scale=time_scale,
                                    metrics_port=_free("127.0.0.1", 9108),
                                    result_port=_free("127.0.0.1", 5020))
-    sim_cfg = parse_sim_config(sim_raw, "<demo plc-sim>")
-    async with PlcSim(sim_cfg) as sim:
+    async with demo_sim(sim_raw) as sim:
         for dev in gw_raw["devices"]:
             dev["port"] = sim.port
         config = parse_config(gw_raw, "<demo gateway>")

@@ -32,6 +32,7 @@ from .model import (
     Config,
     DeviceConfig,
     GatewaySettings,
+    HysteresisSettings,
     LoopConfig,
     MetricsSettings,
     PlantSettings,
@@ -74,6 +75,8 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
     server = _settings(top.sub("modbus_server", "modbus_server"), ResultServerSettings,
                        SERVER_KEYS)
     plant = _settings(top.sub("plant", "plant"), PlantSettings, PLANT_KEYS)
+    hysteresis = _settings(top.sub("verdict_hysteresis", "verdict_hysteresis"),
+                           HysteresisSettings, HYSTERESIS_KEYS)
 
     devices: dict[str, DeviceConfig | None] = {}  # None: named but invalid
     protocols: dict[str, str] = {}  # device name -> protocol, also for invalid devices
@@ -138,7 +141,7 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
         raise ConfigError(problems.lines)
     config = Config(source, tuple(d for d in devices.values() if d is not None),
                     tuple(loops), gateway, metrics, server, assigned=tuple(assigned),
-                    plant=plant)
+                    plant=plant, hysteresis=hysteresis)
     if one_gateway:
         check_config(problems, config)  # what run would refuse or crash on (checks.py)
     if not problems.ok:
@@ -169,6 +172,10 @@ METRICS_KEYS: dict[str, Callable[[Any], Any]] = {
 PLANT_KEYS: dict[str, Callable[[Any], Any]] = {
     "enabled": s.boolean,
     "max_samples": s.integer(64, 65536),
+}
+HYSTERESIS_KEYS: dict[str, Callable[[Any], Any]] = {
+    "rounds": s.integer(1, 1000),
+    "margin": s.number(non_negative=True, at_most=1.0),
 }
 SERVER_KEYS: dict[str, Callable[[Any], Any]] = {
     "listen": s.listen_address,

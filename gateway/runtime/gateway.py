@@ -75,7 +75,8 @@ class Gateway:
             self.runtime.groups, self.runtime.store,
             interval_wall_s=g.analysis_interval_s / g.time_scale, workers=g.analysis_workers,
             batch_size=batch_size, analyze=analyze, executor=executor,
-            on_duration=self.metrics.analysis_duration.observe, plant=config.plant)
+            on_duration=self.metrics.analysis_duration.observe, plant=config.plant,
+            hysteresis=config.hysteresis, on_verdict=self.metrics.count_verdict)
         self.reloads = 0
         self.polling = asyncio.Event()  # set once every poller has completed a tick
         self._polls = PollTasks()
@@ -228,10 +229,7 @@ class Gateway:
         await _close_unused(old.sources.values(), new.sources.values())
         self.runtime = new
         await _bind_all(self.sinks, new.binding())
-        g = config.gateway
-        self.scheduler.groups, self.scheduler.store = list(new.groups), new.store
-        self.scheduler.interval_wall_s = g.analysis_interval_s / g.time_scale
-        self.scheduler.plant = config.plant
+        self.scheduler.reconfigure(new.groups, new.store, config)
         # devices that stay keep their schedule (and their connection if their points are
         # unchanged); new devices start now
         self._polls.start(new.pollers, {n: d for n, d in due.items() if n in new.sources})
