@@ -113,9 +113,10 @@ def test_a_short_window_after_a_restart_is_warming_up_not_a_verdict() -> None:
     """Issue 31 item 2: after a start or an outage the window restarts and the first rounds
     on 33-45 samples published what the analysis said: a healthy loop read `stiction` at
     0.95, a sticky one `bad_data` ("window too short: 9 samples"). Now each is warming up,
-    saying what it waits for; the windows here are the demo's healthy loop (30 min)."""
-    op, pv = _sim("healthy", 3600)
-    for start, length in ((1000, 9), (1200, 33), (1500, 45), (2000, 60)):
+    saying what it waits for; the windows here are the demo's healthy loop (30 min). On main
+    the 9 samples were bad_data and the 33 from 4125 s `stiction` at 0.89."""
+    op, pv = _sim("healthy", 4200)
+    for start, length in ((1000, 9), (1200, 33), (4125, 33), (1500, 45), (2000, 60)):
         seg = slice(start, start + length)
         (_, a, _, n, _), = analyze_batch("stiction:analyze", [
             _real_job(op[seg], pv[seg], 1800, "self-regulating")])
