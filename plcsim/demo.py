@@ -17,10 +17,13 @@ and a plant of interacting loops (``U2.*``, :data:`DEMO_PLANT`: the simulated PL
 group, names U2.FIC101 its source and the others followers; the table says so per loop and
 lists the groups above it.
 
-At the default 40x, one wall second is 40 process seconds: the sticky flow loop shows
-``stiction`` after a few seconds of wall time, the level loop after about 50 s (once its
-window no longer holds the simulation's start-up), the plant's group after about 30 s
-(U2.FIC101's own verdict stays ``undetermined``, about 0.74).
+At the default 40x, one wall second is 40 process seconds; the simulated PLC runs
+``DEMO_WARM_UP_S`` before the gateway polls it. The sticky flow loop shows ``stiction`` after
+about 15 s of wall time (its window holds 2.6 of its cycles), the level loop after about
+20 s (``undetermined`` first, ``stiction`` once it has held 5 rounds: the verdict
+hysteresis), the plant's group after about 30 s (U2.FIC101's own verdict is
+``undetermined``, about 0.8). No verdict changes once a loop's window is full
+(``tests/plcsim/test_demo_verdicts.py``, the demo replayed in memory).
 """
 
 from __future__ import annotations
