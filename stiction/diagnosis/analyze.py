@@ -196,7 +196,9 @@ def analyze_details(
         return Details(Assessment(Verdict.BAD_DATA, q.reason, warnings=warnings))
     op_c, pv_c = q.op, q.pv
     cycle = find_cycle(op_c, pv_c, integrating=integrating)
-    short = too_short(op_c.size, period=cycle.period, scales=movement_scales(op_c, pv_c))
+    # the window's own cycle passed the ACF's test of enough cycles: only what has no cycle
+    # (or too few samples) is too short here
+    short = too_short(op_c.size, scales=None if cycle.cycling else movement_scales(op_c, pv_c))
     if short is not None and short.withdraws(Verdict.STICTION):  # too short for any verdict
         return Details(Assessment(Verdict.BAD_DATA, short.reason(ts_), warnings=warnings),
                        op_c, pv_c, cycle=cycle, start=q.start)

@@ -12,10 +12,12 @@ valves cut into windows of 33-45 samples were called ``stiction`` in 1.4-2.8 % o
    stuck intervals) are mostly noise: measured on the good valves of the three non-sticky
    scenarios (noise 0.02 and 0.2, three seeds), 46 of 2,160 windows of 33-45 samples were
    called ``stiction``, 1 of 2,142 of 60 samples.
-2. **Cycles of the loop's period**, where one is known (found in the window, or by the caller
-   from an earlier judgement): ``SEE_CYCLES`` (2.6) of them, what the ACF needs to see a
-   cycle at all (its four zero crossings within 2/3 of the window: 7/4 periods <= 2n/3,
-   :mod:`stiction.signal.oscillation`). A cycle the window found itself always passes.
+2. **Cycles of the loop's period**, where one is known: ``SEE_CYCLES`` (2.6) of them, what
+   the ACF needs to see a cycle at all (its four zero crossings within 2/3 of the window:
+   7/4 periods <= 2n/3, :mod:`stiction.signal.oscillation`). :func:`stiction.analyze` does
+   not ask it of the window's own cycle (the ACF's test passed it, and its mean period can
+   read a little over n/2.6); the gateway asks it of a filling window's cycle, which costs
+   at most a round of waiting.
 3. **The loop's own time scale**, estimated from the window where no cycle was found
    (:func:`movement_scales`): 4 x the lag at which the ACF of OP (and of PV), each without
    its straight line, first crosses zero (a cycle's ACF first crosses zero a quarter period
