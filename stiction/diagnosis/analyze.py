@@ -1,10 +1,14 @@
 """``analyze``: one window of OP/PV in, one :class:`~stiction.Assessment` out.
 
 The path of a window: the data-quality gates (:mod:`.quality`, :mod:`.responding`); the
-cycle (:func:`stiction.signal.cycle.find_cycle`); every registered detector
-(:mod:`.evidence`, :mod:`stiction.detectors.registry`); one confidence from what they saw
-(:mod:`.features`, the learned :mod:`.model`); when it says stiction, the size
-(:mod:`stiction.quantify.route`); the reason in words (:mod:`.reasons`).
+cycle (:func:`stiction.signal.cycle.find_cycle`); whether the window holds enough of its loop
+to judge (:mod:`.enough`); every registered detector (:mod:`.evidence`,
+:mod:`stiction.detectors.registry`); one confidence from what they saw (:mod:`.features`, the
+learned :mod:`.model`); when it says stiction, the size (:mod:`stiction.quantify.route`);
+the reason in words (:mod:`.reasons`). A window found calm in which a live PV held within
+its noise while OP ramped on is a valve not responding
+(:func:`.responding.held_while_op_ran`); one too short to judge is ``bad_data``, saying what
+would be enough.
 """
 
 from __future__ import annotations
@@ -157,7 +161,9 @@ def analyze(
     -------
     Assessment
         ``verdict`` with a one-sentence ``reason``; sizes only when the verdict is
-        ``stiction``.
+        ``stiction``. A window too short to judge (fewer than 64 samples, or, without a
+        cycle, no more than about one of its own movements: :mod:`.enough`) is
+        ``bad_data``, its reason saying how long would be enough.
 
     Raises
     ------
