@@ -51,6 +51,8 @@ FILTERED = frozenset({Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINE
                       Verdict.NOT_OSCILLATING, Verdict.VALVE_NOT_RESPONDING})
 """The verdicts that judge a loop (module doc); the others pass at once."""
 OUTCOMES = ("published", "held_back")
+HELD, HELD_END = "held", ". "
+"""How a held result's reason begins, and the end of that head (no head holds ". ")."""
 
 
 @dataclasses.dataclass
@@ -84,7 +86,7 @@ class VerdictFilter:
         yet (a result restored from the state file or kept over a reload)."""
         state = self._loops.get(loop)
         if state is None and shown is not None and shown.verdict in FILTERED:
-            state = self._loops[loop] = _Loop(shown, t)
+            state = self._loops[loop] = _Loop(_unheld(shown), t)
         if new.verdict not in FILTERED:
             if new.verdict == Verdict.WARMING_UP and state is not None:
                 return self._hold_warming(state, new, t)
@@ -132,7 +134,15 @@ class VerdictFilter:
 
 
 def _prefixed(a: Assessment, head: str) -> Assessment:
-    return dataclasses.replace(a, reason=f"{head}. {a.reason}")
+    return dataclasses.replace(a, reason=f"{head}{HELD_END}{a.reason}")
+
+
+def _unheld(a: Assessment) -> Assessment:
+    """``a`` without the head a held result's reason starts with (a result restored from
+    the state file may be one): what was judged."""
+    if a.reason.startswith(HELD) and HELD_END in a.reason:
+        return dataclasses.replace(a, reason=a.reason.split(HELD_END, 1)[1])
+    return a
 
 
 def _conf(a: Assessment) -> str:

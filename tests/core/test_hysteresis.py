@@ -114,6 +114,11 @@ def test_a_restored_result_is_held_like_a_published_one() -> None:
     restored = a(S, 0.9, "from the state file", fd=0.3)
     out = f.publish("L", Assessment(Verdict.WARMING_UP, "warming up"), 5.0, shown=restored)
     assert out.verdict == S and out.reason.endswith("from the state file")
+    # a held result restored (the state file was written while it was held): the judgement
+    held = f.publish("L", Assessment(Verdict.WARMING_UP, "warming up"), 6.0)
+    g = VerdictFilter()
+    again = g.publish("L", Assessment(Verdict.WARMING_UP, "warming up"), 7.0, shown=held)
+    assert again.reason.count("held since") == 1 and again.reason.endswith("from the state file")
     propagated = Assessment(Verdict.PROPAGATED, "plant")  # not a per-loop judgement
     assert f.publish("M", Assessment(Verdict.WARMING_UP, "w"), 5.0,
                      shown=propagated).verdict == Verdict.WARMING_UP
