@@ -40,13 +40,14 @@ def add_analyze(sub: Subparsers) -> None:
     p.add_argument("--op-range", dest="op_range", nargs=2, type=float, metavar=("LO", "HI"),
                    default=None, help="OP at 0 %% and 100 %% valve span, to report sizes in %% of "
                    "span (default: sizes in OP units; no OP range is assumed)")
+    historian.add_reading_options(p)
     p.add_argument("--json", action="store_true", help="print the assessment as one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to FILE.png")
     p.set_defaults(handler=_cmd_analyze)
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    table = historian.read_table(args.file)
+    table = historian.read_table(args.file, decimal=args.decimal)
     notes = list(table.notes)
     op_col = historian.column(table, args.op, "--op")
     pv_col = historian.column(table, args.pv, "--pv")

@@ -2,7 +2,9 @@
 
 A historian's CSV export is read as it is: the delimiter sniffed from the header and the
 first rows (``,``, ``;`` or tab; an Excel ``sep=;`` first line is obeyed), decimal commas
-where the delimiter is not ``,``, a UTF-8 or UTF-16 byte-order mark, Windows-1252 when the
+and thousands separators (``1,118.5`` or ``1.118,5``: the decimal mark decided per column
+from the whole column's evidence, :mod:`.decimals`; a column that reads two ways is refused,
+naming both readings), a UTF-8 or UTF-16 byte-order mark, Windows-1252 when the
 file is not UTF-8, column names matched without regard to case, time stamps as seconds or
 as ISO 8601 and other common date-times (:data:`DATE_FORMATS`), and text cells in OP or PV
 ("I/O Timeout", "Shutdown", "Bad") as gaps, counted. Rows go on a grid of the median sample
@@ -13,21 +15,21 @@ to do.
 
 from __future__ import annotations
 
-import collections
+import argparse
 import csv
 import dataclasses
 import datetime as dt
-import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
+from . import decimals
 from ._common import UsageError
 
-__all__ = ["DATE_FORMATS", "TIME_COLUMNS", "Table", "column", "grid", "numbers", "on_grid",
-           "read_table", "times", "write_export"]
+__all__ = ["DATE_FORMATS", "TIME_COLUMNS", "Table", "add_reading_options", "column", "grid",
+           "numbers", "on_grid", "read_table", "times", "write_export"]
 
 DELIMITERS = (",", ";", "\t")
 TIME_COLUMNS = ("t", "time", "timestamp", "datetime", "date time", "date")
@@ -45,8 +47,6 @@ DATE_FORMATS = (
 as the one under which time never goes back."""
 JITTER = 0.25  # a time stamp further than this share of the sample time off the grid is off it
 OFF_GRID = 0.01  # share of rows that may be off the grid before the stamps are refused
-_NUMBER = re.compile(r"[-+]?(\d+[.,]?\d*|[.,]\d+)([eE][-+]?\d+)?")
-_GROUPED = re.compile(r"[-+]?\d{1,3}(\.\d{3})+(,\d*)?")
 _EXAMPLES = ("seconds, or dates like 2024-03-01 06:00:00, 2024-03-01T06:00:00Z, "
              "01.03.2024 06:00:00, 3/1/2024 6:00:00 AM")
 
@@ -60,12 +60,21 @@ class Table:
     rows: list[list[str]]
     lines: list[int]
     delimiter: str
-    decimal_comma: bool
+    decimal: str | None = None
+    """The decimal mark given (``--decimal``), else None: decided per column."""
     notes: tuple[str, ...] = ()
 
 
-def read_table(path: Path) -> Table:
-    """The file's header and rows (empty lines skipped)."""
+def add_reading_options(p: argparse.ArgumentParser) -> None:
+    """The options of how an export is read, for every command that reads one."""
+    p.add_argument("--decimal", choices=(decimals.POINT, decimals.COMMA), default=None,
+                   help="the decimal mark, when the file cannot tell (every number like "
+                   "1,118 or 1.118); default: decided per column from its numbers")
+
+
+def read_table(path: Path, *, decimal: str | None = None) -> Table:
+    """The file's header and rows (empty lines skipped); ``decimal`` the decimal mark
+    (default: decided per column, :func:`numbers`)."""
     text, notes = _text(path)
     lines = text.splitlines()
     first = 0
@@ -89,9 +98,7 @@ def read_table(path: Path) -> Table:
         rows.append(row)
         at.append(reader.line_num + first)
     assert header is not None
-    comma = delimiter != "," and any("," in c and _NUMBER.fullmatch(c.strip()) is not None
-                                     for r in rows[:200] for c in r)
-    return Table(path, header, rows, at, delimiter, comma, tuple(notes))
+    return Table(path, header, rows, at, delimiter, decimal, tuple(notes))
 
 
 def _text(path: Path) -> tuple[str, list[str]]:
@@ -143,42 +150,85 @@ def time_column(table: Table) -> int | None:
     return next((folded.index(n) for n in TIME_COLUMNS if n in folded), None)
 
 
-def _number(cell: str, comma: bool) -> float | None:
-    """A cell as a number (NaN for empty and 'nan'), or None when it is text."""
-    c = cell.strip()
-    if not c or c.casefold() == "nan":
-        return np.nan
-    if comma:
-        if _GROUPED.fullmatch(c):
-            c = c.replace(".", "")
-        c = c.replace(",", ".")
+def _cells(table: Table, col: int) -> list[str]:
+    return [row[col] if col < len(row) else "" for row in table.rows]
+
+
+def read_numbers(table: Table, col: int, cells: Sequence[str]
+                 ) -> tuple[decimals.Column, str | None]:
+    """Column ``col``'s cells as numbers with its decimal mark (the one given, else the one
+    its cells show, else the one the other columns show, :func:`decimals.decide`), and the
+    note that says how they were read when it is not plain: thousands grouped, or the mark
+    taken from elsewhere. A column that reads two ways, or holds both styles, is refused."""
+    own = decimals.tally(cells, decisive=True)
+    others: list[tuple[int, dict[str, int]]] = []
+    if table.decimal is None and decimals.POINT not in own and decimals.COMMA not in own \
+            and decimals.BOTH in own:
+        others = [(j, decimals.tally(_cells(table, j), decisive=True))
+                  for j in range(len(table.header)) if j != col]
+    usual = "." if table.delimiter == "," else None  # a CSV proper: decimal points
     try:
-        return float(c)
-    except ValueError:
-        return None
+        mark, settled = (table.decimal, "given") if table.decimal is not None else \
+            decimals.decide(own, [t for _, t in others], usual)
+    except decimals.Ambiguous as exc:
+        raise UsageError(_ambiguous(table, col, cells, exc.row)) from None
+    got = decimals.read_column(cells, mark)
+    if got.other is not None and settled is None:
+        first = own[mark]
+        point, comma = (first, got.other) if mark == "." else (got.other, first)
+        raise UsageError(
+            f"{table.path}: column {table.header[col]!r} mixes decimal marks: "
+            f"{cells[point].strip()!r} (line {table.lines[point]}) has a decimal point, "
+            f"{cells[comma].strip()!r} (line {table.lines[comma]}) a decimal comma; give "
+            "--decimal . or --decimal , (cells of the other style become gaps, counted)")
+    name = table.header[col]
+    cell = cells[own[decimals.BOTH]].strip() if decimals.BOTH in own else ""
+    read = f"column {name!r}: {cell!r} read as {decimals.value(cell, mark):.10g}: "
+    if settled == "others":
+        j, t = next((j, t) for j, t in others if mark in t)
+        return got, read + (f"{mark!r} is the decimal mark of this export (column "
+                            f"{table.header[j]!r}: {_cells(table, j)[t[mark]].strip()!r})")
+    if settled == "usual" and decimals.grouped(cell, mark):
+        return got, read + "'.' is the decimal mark of a ','-separated file (give " \
+            "--decimal , if ',' is)"
+    if got.grouped is None:
+        return got, None
+    example = cells[got.grouped].strip()
+    other = "," if mark == "." else "."
+    sep = f"{other!r}" if other in example else "a space"
+    return got, (f"column {name!r}: thousands grouped ({example!r} read as "
+                 f"{decimals.value(example, mark):.10g}: {sep} groups thousands, {mark!r} is "
+                 "the decimal mark)")
+
+
+def _ambiguous(table: Table, col: int, cells: Sequence[str], row: int) -> str:
+    cell = cells[row].strip()
+    p, c = decimals.value(cell, "."), decimals.value(cell, ",")
+    sep = "," if "," in cell else "."
+    grouping, decimal = f"{sep!r} grouping thousands", f"{sep!r} the decimal mark"
+    first, second = (f"{p:.10g} with {grouping}", f"{c:.10g} with {decimal}") if sep == "," \
+        else (f"{p:.10g} with {decimal}", f"{c:.10g} with {grouping}")
+    return (f"{table.path}: column {table.header[col]!r}: {cell!r} (line {table.lines[row]}) "
+            f"reads as {first} or as {second}, and no number in the file tells which; give "
+            f"--decimal . (reads {p:.10g}) or --decimal , (reads {c:.10g})")
 
 
 def numbers(table: Table, col: int) -> tuple[np.ndarray, str | None]:
-    """Column ``col`` as numbers, text cells as gaps (NaN), and the note that counts them."""
-    out = np.empty(len(table.rows))
-    text: collections.Counter[str] = collections.Counter()
-    for i, row in enumerate(table.rows):
-        x = _number(row[col] if col < len(row) else "", table.decimal_comma)
-        if x is None:
-            text[row[col].strip()] += 1
-            x = np.nan
-        out[i] = x
+    """Column ``col`` as numbers, text cells as gaps (NaN), and the note that counts them
+    and says how the numbers were read when they group thousands (:func:`read_numbers`)."""
+    got, how = read_numbers(table, col, _cells(table, col))
+    text = got.text
     name = table.header[col]
-    if text and not np.isfinite(out).any():
+    if text and not np.isfinite(got.values).any():
         first = next(iter(text))
         raise UsageError(f"{table.path}: column {name!r} holds no numbers (e.g. {first!r}); "
                          "is it the right column? Give --op/--pv COL")
     if not text:
-        return out, None
+        return got.values, how
     kinds = ", ".join(f"{k!r} {n}" for k, n in text.most_common(3))
     more = "" if len(text) <= 3 else f" and {len(text) - 3} other texts"
-    return out, (f"column {name!r}: {sum(text.values())} text cells treated as gaps: "
-                 f"{kinds}{more}")
+    gaps = f"column {name!r}: {sum(text.values())} text cells treated as gaps: {kinds}{more}"
+    return got.values, gaps if how is None else f"{how}; {gaps}"
 
 
 def times(table: Table, col: int) -> np.ndarray:
@@ -191,9 +241,10 @@ def times(table: Table, col: int) -> np.ndarray:
             raise UsageError(f"{table.path}: line {table.lines[i]}, column {name!r}: no time; "
                              "every row needs one (or give --ts S for rows at a fixed "
                              "interval)")
-    nums = [_number(c, table.decimal_comma) for c in cells]
-    if all(x is not None for x in nums):
-        return np.array(nums, dtype=float)
+    if cells and decimals.is_number(cells[0]):  # seconds
+        got, _ = read_numbers(table, col, cells)
+        if not got.text:
+            return got.values
     parsed = _dates(cells)
     if parsed is None:
         i = _first_bad(cells)
@@ -253,7 +304,7 @@ def _parse(cell: str, form: str) -> dt.datetime | None:
 def _first_bad(cells: Sequence[str]) -> int:
     """The first cell no form reads (for the message)."""
     for i, c in enumerate(cells):
-        if _number(c, False) is None and all(_parse(c, f) is None
+        if not decimals.is_number(c) and all(_parse(c, f) is None
                                               for f in ("iso", *DATE_FORMATS)):
             return i
     return 0

@@ -1,0 +1,185 @@
+"""Historian exports with their quirks (issue 32 items 1 and 2): each one read to the same
+verdict and sizes as the clean export of the same numbers, or refused (exit 2) with a
+message naming the quirk; never a different answer without a word.
+
+The clean export is a simulated sticky loop (deterministic), written plainly; each quirky
+export writes the same numbers (so the analysis sees the same floats) as a historian would.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stiction.cli import decimals, main
+from stiction.scenarios import simulate
+
+
+@pytest.fixture(scope="module")
+def loop() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    res = simulate("table4-case2", noise=0.02, seed=4)
+    return res.t, res.op, res.pv
+
+
+def _write(path: Path, header: Sequence[str], rows: Sequence[Sequence[str]], sep: str,
+           quote: bool = False) -> Path:
+    def cell(c: str) -> str:
+        return f'"{c}"' if quote and sep in c else c
+    lines = [sep.join(header)] + [sep.join(cell(c) for c in r) for r in rows]
+    path.write_text("\r\n".join(lines) + "\r\n", encoding="utf-8")
+    return path
+
+
+def _run(capsys: pytest.CaptureFixture[str], path: Path, *args: str) -> dict:
+    assert main(["analyze", str(path), "--json", *args]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _error(capsys: pytest.CaptureFixture[str], path: Path, *args: str) -> str:
+    with pytest.raises(SystemExit) as info:
+        main(["analyze", str(path), *args])
+    assert info.value.code == 2
+    return capsys.readouterr().err
+
+
+def _same(got: dict, clean: dict) -> None:
+    """The same answer: verdict, confidence, sizes and every figure but the warnings."""
+    assert {k: v for k, v in got.items() if k != "warnings"} == \
+        {k: v for k, v in clean.items() if k != "warnings"}
+
+
+def _clean(tmp_path: Path, capsys: pytest.CaptureFixture[str], t: np.ndarray,
+           op: np.ndarray, pv: np.ndarray, *, fmt: str = ".4f") -> dict:
+    rows = [(f"{a:g}", f"{b:.4f}", format(c, fmt)) for a, b, c in zip(t, op, pv, strict=True)]
+    return _run(capsys, _write(tmp_path / "clean.csv", ("t", "op", "pv"), rows, ","))
+
+
+def _comma_style(cell: str) -> str:
+    """``1,118.5`` -> ``1.118,5``."""
+    return cell.translate(str.maketrans(",.", ".,"))
+
+
+# ----------------------------------------------------------------- thousands separators
+@pytest.mark.parametrize("offset", [1100.0, 948.0], ids=["above-1000", "across-1000"])
+@pytest.mark.parametrize("style", ["tab-point", "semicolon-comma", "tab-comma"])
+def test_thousands_separators_read_as_the_clean_export(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        offset: float, style: str) -> None:
+    """Issue 32 item 1: a tab export with PV above 1,000 written `1,118.5` lost every cell
+    (or, across 1,000, the cells above it as 'text cells treated as gaps'); read now, the
+    answer is the clean export's and a warning says how the numbers were read."""
+    t, op, pv = loop
+    pv = pv + offset
+    assert offset > 1000 or (pv.min() < 1000 < pv.max())
+    clean = _clean(tmp_path, capsys, t, op, pv)
+    sep, fix = {"tab-point": ("\t", str), "semicolon-comma": (";", _comma_style),
+                "tab-comma": ("\t", _comma_style)}[style]
+    rows = [(f"{a:g}", fix(f"{b:,.4f}"), fix(f"{c:,.4f}")) for a, b, c in zip(t, op, pv,
+                                                                            strict=True)]
+    got = _run(capsys, _write(tmp_path / "export.csv", ("t", "op", "pv"), rows, sep))
+    _same(got, clean)
+    mark = "." if style == "tab-point" else ","
+    assert any(w.startswith("column 'pv': thousands grouped") and f"{mark!r} is the decimal "
+               "mark" in w for w in got["warnings"]), got["warnings"]
+    assert not any("text cells" in w for w in got["warnings"])
+
+
+def test_integers_grouped_read_from_the_other_columns(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        loop: tuple[np.ndarray, ...]) -> None:
+    """Issue 32 item 1, the silent misread: every PV cell like `5,118` in a tab export was
+    read as 5.118 (with --kp: stiction, fs a thousand times too large, no word). PV alone
+    cannot tell; OP's `50.1234` shows '.' is this export's decimal mark, so PV is 5118,
+    and a warning says so."""
+    t, op, pv = loop
+    pv = np.round(100.0 * pv)
+    clean = _clean(tmp_path, capsys, t, op, pv, fmt=".0f")
+    rows = [(f"{a:g}", f"{b:.4f}", f"{c:,.0f}") for a, b, c in zip(t, op, pv, strict=True)]
+    got = _run(capsys, _write(tmp_path / "export.csv", ("t", "op", "pv"), rows, "\t"),
+               "--kp", "100")
+    clean_kp = _run(capsys, tmp_path / "clean.csv", "--kp", "100")
+    _same(got, clean_kp)
+    assert clean["verdict"] == clean_kp["verdict"]
+    assert f"column 'pv': {rows[0][2]!r} read as {pv[0]:.0f}: '.' is the decimal mark of " \
+        "this export (column 'op': " in " ".join(got["warnings"])
+
+
+def test_a_column_that_reads_two_ways_is_refused_naming_both(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        loop: tuple[np.ndarray, ...]) -> None:
+    """Issue 32 item 1: every number of the file like `1,118` or `50.125` (OP with three
+    decimals): no cell tells which mark is the decimal one: exit 2 with both readings, and
+    --decimal settles it, to the clean export's answer."""
+    t, op, pv = loop
+    op = np.round(op, 3)
+    pv = np.round(100.0 * pv)
+    assert op.min() >= 1.0 and pv.min() >= 1000
+    rows = [(f"2024-03-01 06:{int(a) // 60:02d}:{int(a) % 60:02d}", f"{b:.3f}", f"{c:,.0f}")
+            for a, b, c in zip(t, op, pv, strict=True)]
+    path = _write(tmp_path / "export.txt", ("Time", "op", "pv"), rows[:3000], "\t")
+    err = _error(capsys, path)
+    assert f"column 'op': {rows[0][1]!r} (line 2) reads as {op[0]:.10g} with '.' the decimal " \
+        f"mark or as {op[0] * 1000:.10g} with '.' grouping thousands, and no number in the " \
+        "file tells which; give --decimal . " in err
+    clean = [(f"{a:g}", f"{b:.3f}", f"{c:.0f}") for a, b, c in zip(t, op, pv, strict=True)]
+    want = _run(capsys, _write(tmp_path / "clean.csv", ("t", "op", "pv"), clean, ","))
+    assert not any(w.startswith("column") for w in want["warnings"])  # a CSV: '.' decimal
+    _same(_run(capsys, path, "--decimal", "."), want)
+
+
+def test_the_pv_column_alone_names_its_two_readings(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    rows = [(str(i), "50", f"{1 + i % 7},{118 + i % 3}") for i in range(20)]
+    err = _error(capsys, _write(tmp_path / "e.csv", ("t", "op", "pv"), rows, "\t"))
+    assert "column 'pv': '1,118' (line 2) reads as 1118 with ',' grouping thousands or as " \
+        "1.118 with ',' the decimal mark, and no number in the file tells which; give " \
+        "--decimal . (reads 1118) or --decimal , (reads 1.118)" in err
+
+
+@pytest.mark.parametrize("fmt", [",.4f", ",.0f"], ids=["12,504.3", "12,504"])
+def test_quoted_grouped_numbers_in_a_comma_file(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        loop: tuple[np.ndarray, ...], fmt: str) -> None:
+    """Issue 32 item 1: `"12,504.3"` in a comma file was 'holds no numbers'. `"12,504"`
+    alone reads either way: in a ','-separated file '.' is the decimal mark, said so."""
+    t, op, pv = loop
+    pv = np.round(12000.0 + 10.0 * pv, 4 if "4" in fmt else 0)
+    clean = _clean(tmp_path, capsys, t, op, pv)
+    rows = [(f"{a:g}", f"{b:.4f}", format(c, fmt)) for a, b, c in zip(t, op, pv, strict=True)]
+    got = _run(capsys, _write(tmp_path / "export.csv", ("t", "op", "pv"), rows, ",",
+                              quote=True))
+    _same(got, clean)
+    assert any(w.startswith("column 'pv': ") for w in got["warnings"])
+    assert not any(w.startswith("column 'op'") or w.startswith("column 't'")
+                   for w in got["warnings"]), got["warnings"]
+
+
+def test_a_column_with_both_decimal_marks_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rows = [(str(i), "50", "12.5" if i != 7 else "12,5") for i in range(20)]
+    err = _error(capsys, _write(tmp_path / "e.csv", ("t", "op", "pv"), rows, "\t"))
+    assert "column 'pv' mixes decimal marks: '12.5' (line 2) has a decimal point, '12,5' " \
+        "(line 9) a decimal comma; give --decimal . or --decimal ," in err
+
+
+@pytest.mark.parametrize(("cell", "point", "comma"), [
+    ("1,118", 1118.0, 1.118), ("1.118", 1.118, 1118.0), ("45.3", 45.3, None),
+    ("45,3", None, 45.3), ("0,118", None, 0.118), ("0.118", 0.118, None),
+    ("1,118.5", 1118.5, None), ("1.118,5", None, 1118.5), ("-12,504.3", -12504.3, None),
+    ("1 118,5", None, 1118.5), ("1'118.5", 1118.5, None), ("1\u00a0118,5", None, 1118.5),
+    ("1,118,500", 1118500.0, None), ("1.118.500", None, 1118500.0), ("12", 12.0, 12.0),
+    ("1e5", 1e5, 1e5), ("1,5e3", None, 1500.0), ("I/O Timeout", None, None),
+    ("11,18", None, 11.18), ("1_000", None, None), ("1.5,3", None, None),
+])
+def test_each_cell_read_both_ways(cell: str, point: float | None,
+                                  comma: float | None) -> None:
+    assert decimals.value(cell, ".") == point
+    assert decimals.value(cell, ",") == comma
+    both = point is not None and comma is not None and point != comma
+    assert decimals.kind(cell) == ("both" if both else "." if comma is None and point
+                                   is not None else "," if point is None and comma is not None
+                                   else None)
