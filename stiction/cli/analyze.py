@@ -47,7 +47,7 @@ def add_analyze(sub: Subparsers) -> None:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    table = historian.read_table(args.file, decimal=args.decimal)
+    table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     notes = list(table.notes)
     op_col = historian.column(table, args.op, "--op")
     pv_col = historian.column(table, args.pv, "--pv")

@@ -74,7 +74,7 @@ def loop_columns(header: list[str]) -> tuple[dict[str, tuple[int, int]], dict[st
 
 def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, np.ndarray]],
                                              dict[str, np.ndarray], list[str]]:
-    table = historian.read_table(args.file, decimal=args.decimal)
+    table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     notes = list(table.notes)
     if args.time is not None:
         t_col: int | None = historian.column(table, args.time, "--time")

@@ -8,8 +8,12 @@ export writes the same numbers (so the analysis sees the same floats) as a histo
 
 from __future__ import annotations
 
+import contextlib
+import datetime as dt
+import io
 import json
-from collections.abc import Sequence
+import zoneinfo
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -183,3 +187,164 @@ def test_each_cell_read_both_ways(cell: str, point: float | None,
     assert decimals.kind(cell) == ("both" if both else "." if comma is None and point
                                    is not None else "," if point is None and comma is not None
                                    else None)
+
+
+# ------------------------------------------------------------------- historian quirks (item 2)
+UTC0 = dt.datetime(2024, 3, 1, 6, 0, 0, tzinfo=dt.UTC)
+
+
+def _export(path: Path, loop: tuple[np.ndarray, ...], stamp: Callable[[dt.datetime], str], *,
+            header: Sequence[str] = ("Time", "FIC101.OP", "FIC101.PV"), start: dt.datetime = UTC0,
+            sep: str = "\t") -> tuple[Path, list[list[str]]]:
+    """The loop as a historian writes it: ``stamp`` writes each UTC time stamp."""
+    t, op, pv = loop
+    rows = [[stamp(start + dt.timedelta(seconds=float(a))), f"{b:.4f}", f"{c:.4f}"]
+            for a, b, c in zip(t, op, pv, strict=True)]
+    return _write(path, header, rows, sep), rows
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory: pytest.TempPathFactory, loop: tuple[np.ndarray, ...]) -> dict:
+    """The clean export's answer (t in seconds, ',' separated, the same numbers)."""
+    t, op, pv = loop
+    rows = [(f"{a:g}", f"{b:.4f}", f"{c:.4f}") for a, b, c in zip(t, op, pv, strict=True)]
+    path = _write(tmp_path_factory.mktemp("clean") / "clean.csv", ("t", "op", "pv"), rows, ",")
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["analyze", str(path), "--json"]) == 0
+    return json.loads(out.getvalue())
+
+
+def _quirk(capsys: pytest.CaptureFixture[str], path: Path, *args: str) -> dict:
+    return _run(capsys, path, "--op", "FIC101.OP", "--pv", "FIC101.PV", *args)
+
+
+def _iso(u: dt.datetime) -> str:
+    return u.strftime("%Y-%m-%d %H:%M:%S")
+
+
+def _local(zone: str, form: str = "%Y-%m-%d %H:%M:%S %Z") -> Callable[[dt.datetime], str]:
+    return lambda u: u.astimezone(zoneinfo.ZoneInfo(zone)).strftime(form)
+
+
+HEADER = ("Time", "FIC101.OP", "FIC101.PV")
+
+
+@pytest.mark.parametrize("head", [[["", "%", "m3/h"]],
+                                  [["Description", "FIC101 output", "FIC101 flow"],
+                                   ["Units", "%", "m3/h"]]], ids=["units", "description-units"])
+def test_rows_of_units_under_the_header_are_skipped_and_said(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict, head: list[list[str]]) -> None:
+    """Issue 32 item 2: a units row under the header ended in 'line 2: no time; every row
+    needs one, or give --ts', and --ts threw the time stamps away."""
+    _, rows = _export(tmp_path / "x.txt", loop, _iso)
+    path = _write(tmp_path / "export.txt", HEADER, [*head, *rows], "\t")
+    got = _quirk(capsys, path)
+    _same(got, clean)
+    shown = ", ".join(f"{h} {c!r}" for h, c in zip(HEADER, head[0], strict=True) if c)
+    assert "line 2 under the header holds no number and no time (units or a description?): " \
+        f"skipped ({shown})" in got["warnings"]
+    assert len([w for w in got["warnings"] if "under the header" in w]) == len(head)
+
+
+@pytest.mark.parametrize("order", [(0, 1, 2), (0, 2, 1)], ids=["same-order", "other-order"])
+def test_a_header_repeated_where_two_exports_were_appended(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict, order: tuple[int, ...]) -> None:
+    """Issue 32 item 2: 'line 1502: not a time: 'Time''. The second export's header (and
+    its units row) skipped, its columns put back in the first header's order."""
+    _, rows = _export(tmp_path / "x.txt", loop, _iso)
+    second = [[r[j] for j in order] for r in rows[600:]]
+    path = _write(tmp_path / "export.txt", HEADER,
+                  [["", "%", "m3/h"], *rows[:600], [HEADER[j] for j in order],
+                   [["", "%", "m3/h"][j] for j in order], *second], "\t")
+    got = _quirk(capsys, path)
+    _same(got, clean)
+    said = "skipped" if order == (0, 1, 2) else "the rows after it put back in the first " \
+        "header's column order"
+    assert f"the header repeats at line 603 (two exports appended?): {said}" in got["warnings"]
+
+
+def test_appended_exports_that_overlap_are_refused_naming_the_join(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        loop: tuple[np.ndarray, ...]) -> None:
+    _, rows = _export(tmp_path / "x.txt", loop, _iso)
+    path = _write(tmp_path / "export.txt", HEADER, [*rows[:600], HEADER, *rows[550:]], "\t")
+    err = _error(capsys, path, "--op", "FIC101.OP", "--pv", "FIC101.PV")
+    assert "time goes backwards in column 'Time': '2024-03-01 06:09:59' (line 601) -> " \
+        "'2024-03-01 06:09:10' (line 603), where the header repeats at line 602: two exports " \
+        "appended that overlap in time" in err
+
+
+def test_a_header_of_other_columns_inside_the_file_is_named(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        loop: tuple[np.ndarray, ...]) -> None:
+    _, rows = _export(tmp_path / "x.txt", loop, _iso)
+    path = _write(tmp_path / "export.txt", HEADER,
+                  [*rows[:600], ["Time", "FIC102.OP", "FIC102.PV"], *rows[600:]], "\t")
+    err = _error(capsys, path, "--op", "FIC101.OP", "--pv", "FIC101.PV")
+    assert "line 602, column 'Time': not a time: 'Time'; it names a column: a header of " \
+        "other columns where two exports were appended?" in err
+
+
+def test_zone_abbreviations_across_a_daylight_saving_change(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict) -> None:
+    """Issue 32 item 2: `2026-03-01 06:00:00 CET` was refused. Local stamps with their
+    abbreviation across the spring change (01:59:59 CET -> 03:00:00 CEST) read as one clock."""
+    start = dt.datetime(2024, 3, 31, 0, 50, tzinfo=dt.UTC)
+    path, rows = _export(tmp_path / "export.txt", loop, _local("Europe/Berlin"), start=start)
+    assert rows[0][0] == "2024-03-31 01:50:00 CET" and rows[-1][0].endswith("CEST")
+    got = _quirk(capsys, path)
+    _same(got, clean)
+    assert "time zones read: CEST +02:00, CET +01:00" in got["warnings"]
+
+
+def test_an_abbreviation_of_several_zones_needs_tz(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict) -> None:
+    """CDT and CST are US Central's and Cuba's (CST China's too): refused without --tz,
+    read with it, across the autumn change whose hour 01:00-02:00 comes twice."""
+    start = dt.datetime(2024, 11, 3, 6, 50, tzinfo=dt.UTC)
+    path, rows = _export(tmp_path / "export.txt", loop, _local("America/Chicago"), start=start)
+    assert rows[0][0] == "2024-11-03 01:50:00 CDT" and rows[-1][0] == "2024-11-03 01:09:59 CST"
+    err = _error(capsys, path, "--op", "FIC101.OP", "--pv", "FIC101.PV")
+    assert "line 2, column 'Time': '2024-11-03 01:50:00 CDT': zone 'CDT' names several zones " \
+        "(US Central -05:00 or Cuba -04:00): give --tz with the historian's zone" in err
+    _same(_quirk(capsys, path, "--tz", "America/Chicago"), clean)
+
+
+def test_local_stamps_without_a_zone_at_the_autumn_change(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict) -> None:
+    """Stamps in local time without a zone go back an hour at the end of summer time: the
+    message says so and how to read them; --tz reads them, the repeated hour in row order."""
+    start = dt.datetime(2024, 10, 27, 0, 50, tzinfo=dt.UTC)
+    path, _ = _export(tmp_path / "export.txt", loop, _local("Europe/Berlin", "%d.%m.%Y %H:%M:%S"),
+                      start=start)
+    err = _error(capsys, path, "--op", "FIC101.OP", "--pv", "FIC101.PV")
+    assert "time goes backwards in column 'Time': '27.10.2024 02:59:59' (line 601) -> " \
+        "'27.10.2024 02:00:00' (line 602): an hour back, the end of summer time in local time " \
+        "stamps? Give --tz with the historian's zone" in err
+    _same(_quirk(capsys, path, "--tz", "Europe/Berlin"), clean)
+
+
+def test_time_messages_show_stamps_as_written(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 32 item 2: 'time goes backwards: 1.70927e+09 -> 1.70927e+09 s'."""
+    rows = [(t, "1", "2") for t in ("1709270000", "1709270002", "1709270001")]
+    err = _error(capsys, _write(tmp_path / "e.csv", ("t", "op", "pv"), rows, ","))
+    assert "time goes backwards in column 't': '1709270002' (line 3) -> '1709270001' (line 4)" \
+        in err
+
+
+@pytest.mark.parametrize(("tz", "said"), [
+    ("Mars/Olympus", "argument --tz: unknown zone 'Mars/Olympus': give an IANA zone such as "
+     "Europe/Berlin"),
+    (None, "zone 'XYZT' is not one this reader knows: give --tz with the historian's zone")])
+def test_unknown_zones_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                 tz: str | None, said: str) -> None:
+    rows = [(f"2024-03-01 06:00:0{i} XYZT", "1", "2") for i in range(3)]
+    path = _write(tmp_path / "e.csv", ("t", "op", "pv"), rows, ",")
+    assert said in _error(capsys, path, *(["--tz", tz] if tz else []))
