@@ -12,7 +12,7 @@ from .._assessment import Assessment
 from ..diagnosis.analyze import analyze_details
 from . import historian
 from ._common import Subparsers, UsageError
-from .plot import plot_analysis
+from .plot import plot_analysis, window_clock
 
 
 # ------------------------------------------------------------------------------- analyze
@@ -65,12 +65,13 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     op, op_note = historian.numbers(table, op_col)
     pv, pv_note = historian.numbers(table, pv_col)
     notes += [n for n in (op_note, pv_note) if n]
-    if t_col is not None:
-        t = historian.times(table, t_col)
+    t = None if t_col is None else historian.times(table, t_col)
+    if t is not None and t_col is not None:
         ts, op, pv, grid = historian.on_grid(args.file, table.header[t_col], t, op, pv)
         notes += grid
     else:
         ts = args.ts
+    clock = window_clock(t, ts, op, pv)
     op_range = None if args.op_range is None else tuple(args.op_range)
     d = analyze_details(op, pv, ts=ts, kp=args.kp, delay=args.delay, process=args.process,
                         op_range=op_range)
@@ -100,7 +101,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         for w in a.warnings:
             print(f"  warning: {w}")
     if args.plot is not None:
-        plot_analysis(args.plot, d, ts, op_range)
+        plot_analysis(args.plot, d, ts, op_range, clock)
         if not args.json:
             print(f"wrote {args.plot}")
     return 0

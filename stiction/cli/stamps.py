@@ -153,7 +153,7 @@ def _zones(tokens: Sequence[str | None], tz: dt.tzinfo | None) -> dict[str, dt.t
         if m is not None:
             out[token] = _fixed(m)
         elif abbr in ZONES:
-            out[token] = dt.timezone(dt.timedelta(hours=ZONES[abbr]))
+            out[token] = dt.timezone(dt.timedelta(hours=ZONES[abbr]), abbr)
         elif tz is not None:
             out[token] = tz
         elif abbr in AMBIGUOUS:

@@ -348,3 +348,41 @@ def test_unknown_zones_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[s
     rows = [(f"2024-03-01 06:00:0{i} XYZT", "1", "2") for i in range(3)]
     path = _write(tmp_path / "e.csv", ("t", "op", "pv"), rows, ",")
     assert said in _error(capsys, path, *(["--tz", tz] if tz else []))
+
+
+# ------------------------------------------------------------------------ plots (item 9)
+@pytest.mark.parametrize("zone", ["Europe/Berlin", None], ids=["CET", "seconds"])
+def test_the_plot_is_on_the_exports_own_time_axis(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        monkeypatch: pytest.MonkeyPatch, zone: str | None) -> None:
+    """Issue 32 item 9: the plot counted time from 0 s even when the export had date-times,
+    so the stretch could not be found on the historian's trend; the test-vote marks (+ - .)
+    were not explained. Leading gaps trimmed by the analysis move the start with them."""
+    figure = pytest.importorskip("matplotlib.figure")
+    figures: list = []
+    monkeypatch.setattr(figure.Figure, "savefig",
+                        lambda self, *a, **k: figures.append(self))
+    if zone is None:
+        t, op, pv = loop
+        rows = [[f"{a + 5000:g}", f"{b:.4f}", f"{c:.4f}"] for a, b, c in
+                zip(t, op, pv, strict=True)]
+        path = _write(tmp_path / "export.csv", HEADER, rows, ",")
+    else:
+        path, rows = _export(tmp_path / "export.txt", loop, _local(zone))
+    for r in rows[:3]:
+        r[2] = "I/O Timeout"  # three leading gaps: the window starts at the fourth row
+    path = _write(path, HEADER, rows, "\t" if zone else ",")
+    assert main(["analyze", str(path), "--op", "FIC101.OP", "--pv", "FIC101.PV", "--plot",
+                 str(tmp_path / "a.png")]) == 0
+    ax_op, ax_pv, ax_pattern = figures[0].axes
+    first = ax_op.lines[0].get_xdata()[0]
+    if zone is None:
+        assert first == 5003.0
+        assert ax_pv.get_xlabel() == "t, s (the export's time)"
+    else:
+        assert first == dt.datetime(2024, 3, 1, 7, 0, 3, tzinfo=zoneinfo.ZoneInfo(zone))
+        assert first.strftime("%Y-%m-%d %H:%M:%S %Z") == rows[3][0]
+        assert ax_pv.get_xlabel() == "time (CET, as the export's time stamps)"
+    text = ax_pattern.texts[0].get_text()
+    assert text.startswith("test votes: + stiction, - not stiction, . cannot tell\n")
+    capsys.readouterr()
