@@ -109,8 +109,9 @@ def read_table(path: Path, *, decimal: str | None = None, tz: dt.tzinfo | None =
             header = [c.strip() for c in row]
             folded = [h.casefold() for h in header]
             continue
-        cells = [c.strip().casefold() for c in row]
-        if cells[:1] and cells[0] in folded and sorted(cells) == sorted(folded):
+        cells = [c.strip().casefold() for c in row] if row[0].strip().casefold() in folded \
+            else []  # a data row's first cell is no column name: the common case, quickly
+        if cells and sorted(cells) == sorted(folded):
             appended.append(line)
             order = None if cells == folded else [cells.index(h) for h in folded]
             notes.append(f"the header repeats at line {line} (two exports appended?): "
