@@ -33,6 +33,7 @@ from ..core.store import ResultStore
 from ..inputs.base import Source
 from ..outputs.base import Binding, Sink
 from ..outputs.prometheus import GatewayMetrics
+from .logs import clip
 from .poller import Clocks, DevicePoller
 from .reload import (
     ReloadRefused,
@@ -217,7 +218,7 @@ class Gateway:
             for p in old.pollers:
                 p.resume()
             self._polls.start(old.pollers, due)
-            text = " ".join(str(exc).split())[:200]
+            text = clip(exc, 200)
             raise ReloadRefused("build", f"{config.source}: its runtime cannot be built: "
                                 f"{type(exc).__name__}: {text}") from exc
         for swap in swaps:  # the new listeners take over (the old ones serve until then)

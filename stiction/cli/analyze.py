@@ -12,7 +12,7 @@ from .._assessment import Assessment
 from ..diagnosis.analyze import analyze_details
 from . import historian
 from ._common import Subparsers, UsageError
-from .plot import plot_analysis
+from .plot import plot_analysis, window_clock
 
 
 # ------------------------------------------------------------------------------- analyze
@@ -40,13 +40,14 @@ def add_analyze(sub: Subparsers) -> None:
     p.add_argument("--op-range", dest="op_range", nargs=2, type=float, metavar=("LO", "HI"),
                    default=None, help="OP at 0 %% and 100 %% valve span, to report sizes in %% of "
                    "span (default: sizes in OP units; no OP range is assumed)")
+    historian.add_reading_options(p)
     p.add_argument("--json", action="store_true", help="print the assessment as one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to FILE.png")
     p.set_defaults(handler=_cmd_analyze)
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    table = historian.read_table(args.file)
+    table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     notes = list(table.notes)
     op_col = historian.column(table, args.op, "--op")
     pv_col = historian.column(table, args.pv, "--pv")
@@ -64,12 +65,13 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     op, op_note = historian.numbers(table, op_col)
     pv, pv_note = historian.numbers(table, pv_col)
     notes += [n for n in (op_note, pv_note) if n]
-    if t_col is not None:
-        t = historian.times(table, t_col)
+    t = None if t_col is None else historian.times(table, t_col)
+    if t is not None and t_col is not None:
         ts, op, pv, grid = historian.on_grid(args.file, table.header[t_col], t, op, pv)
         notes += grid
     else:
         ts = args.ts
+    clock = window_clock(t, ts, op, pv)
     op_range = None if args.op_range is None else tuple(args.op_range)
     d = analyze_details(op, pv, ts=ts, kp=args.kp, delay=args.delay, process=args.process,
                         op_range=op_range)
@@ -99,7 +101,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
         for w in a.warnings:
             print(f"  warning: {w}")
     if args.plot is not None:
-        plot_analysis(args.plot, d, ts, op_range)
+        plot_analysis(args.plot, d, ts, op_range, clock)
         if not args.json:
             print(f"wrote {args.plot}")
     return 0
