@@ -16,10 +16,14 @@ PLC (:mod:`gateway.wire.registers`) and the metrics server
   requests is answered nor read (one answer may exceed it: a /metrics page is queued whole).
 * **Limit**: at most ``max_connections`` at once. A newcomer beyond it closes the connection
   that costs the most (:meth:`Listener.victim`): first one that never completed a request
-  (a half-open connection, the longest idle first: reason ``limit``), then one whose
-  answers are queued unread (most bytes queued, then the oldest pending: ``unread``), then
-  the busiest (highest recent request rate: ``busiest``). A quiet client (a SCADA poller
-  reading once a second) is the last to go.
+  in the :data:`JUST_CONNECTED_S` since it connected (a half-open connection, the longest
+  idle first: reason ``limit``), then one whose answers are queued unread (most bytes
+  queued, then the oldest pending: ``unread``), then the busiest (highest recent request
+  rate: ``busiest``). A client that has just connected is not yet half-open: while one
+  waits for its first answer and no connection is half-open or unread, the newcomer itself
+  is refused (``limit``), so that clients reconnecting in a storm cannot close each other's
+  connections before their first request. A quiet client (a SCADA poller reading once a
+  second) is the last to go.
 * **Idle timeout**: a connection with no byte received for ``idle_timeout_s`` is closed,
   unless an answer is being prepared for it (a half-open or trickling connection costs at
   most that long).
@@ -47,8 +51,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["CLOSE_REASONS", "CONN_TURN_REQUESTS", "ERROR_STAGES", "TURN_REQUESTS",
-           "WRITE_HIGH_WATER", "Conn", "Listener", "ListenerStats", "report"]
+__all__ = ["CLOSE_REASONS", "CONN_TURN_REQUESTS", "ERROR_STAGES", "JUST_CONNECTED_S",
+           "TURN_REQUESTS", "WRITE_HIGH_WATER", "Conn", "Listener", "ListenerStats", "report"]
 
 log = logging.getLogger("gateway.server")
 
@@ -66,6 +70,10 @@ TURN_REQUESTS = 32  # requests a listener answers per turn of the event loop, al
 CONN_TURN_REQUESTS = 4  # ... of which one client at most before the next one's turn
 RATE_TAU_S = 10.0  # time constant of a connection's request rate (eviction)
 RATE_MIN_AGE_S = 1.0  # a young connection's rate is counted over at least this long
+JUST_CONNECTED_S = 0.5
+"""How long a connection may take to complete its first request before it counts as
+half-open (a client sends its request within milliseconds of connecting; a loaded box or
+network may take a few hundred)."""
 
 
 def report(server: str, place: str, exc: BaseException) -> None:
@@ -362,14 +370,15 @@ class Listener:
     def victim(self, now: float) -> tuple[Conn | None, str]:
         """The connection a newcomer over the limit closes, and why (see the module)."""
         never = [c for c in self.conns if not c.useful and not c.busy]
-        if never:
-            return min(never, key=lambda c: c.last), "limit"
+        half_open = [c for c in never if now - c.born >= JUST_CONNECTED_S]
+        if half_open:
+            return min(half_open, key=lambda c: c.last), "limit"
         unread = [c for c in self.conns if c.queued() >= WRITE_HIGH_WATER]
         if unread:
             return max(unread, key=lambda c: (c.queued(), now - (c.pending_since or now))), \
                 "unread"
-        if not self.conns:
-            return None, "limit"
+        if never or not self.conns:  # just connected, waiting for a first answer: not
+            return None, "limit"  # to be closed by the next to connect; that one waits
         return max(self.conns, key=lambda c: (c.rate(now), now - c.last)), "busiest"
 
     def forget(self, conn: Conn) -> None:
