@@ -315,9 +315,8 @@ class DeviceReport:
 
     def failed(self, err: DeviceError) -> None:
         """The device is down (again): ``stiction_device_up`` 0, and why, in the words of
-        the log line (``stiction_device_down_reason``). A device that is down is not also
-        behind schedule (one fault, one alert): its flag is cleared and its schedule judged
-        afresh once it answers again."""
+        the log line (``stiction_device_down_reason``); not also behind schedule (one fault,
+        one alert): its schedule is judged afresh once it answers again."""
         if self.lag.behind:
             self.lag = Lag(self.lag.period, self.lag.window_s)
             self._behind(False)

@@ -15,15 +15,13 @@ PLC (:mod:`gateway.wire.registers`) and the metrics server
   than :data:`WRITE_HIGH_WATER` bytes of answers wait for a client to read them, none of its
   requests is answered nor read (one answer may exceed it: a /metrics page is queued whole).
 * **Limit**: at most ``max_connections`` at once. A newcomer beyond it closes the connection
-  that costs the most (:meth:`Listener.victim`): first one that never completed a request
-  in the :data:`JUST_CONNECTED_S` since it connected (a half-open connection, the longest
-  idle first: reason ``limit``), then one whose answers are queued unread (most bytes
-  queued, then the oldest pending: ``unread``), then the busiest (highest recent request
-  rate: ``busiest``). A client that has just connected is not yet half-open: while one
-  waits for its first answer and no connection is half-open or unread, the newcomer itself
-  is refused (``limit``), so that clients reconnecting in a storm cannot close each other's
-  connections before their first request. A quiet client (a SCADA poller reading once a
-  second) is the last to go.
+  that costs the most (:meth:`Listener.victim`): first one with no request completed
+  :data:`JUST_CONNECTED_S` after it connected (half-open, the longest idle first: reason
+  ``limit``), then one whose answers are queued unread (most bytes queued, then the oldest
+  pending: ``unread``), then the busiest (highest recent request rate: ``busiest``). One
+  that has just connected is not yet half-open: while it waits for its first answer the
+  newcomer is refused instead (``limit``; a reconnect storm cannot close a client's new
+  connection before its first request). A quiet client is the last to go.
 * **Idle timeout**: a connection with no byte received for ``idle_timeout_s`` is closed,
   unless an answer is being prepared for it (a half-open or trickling connection costs at
   most that long).
@@ -70,10 +68,8 @@ TURN_REQUESTS = 32  # requests a listener answers per turn of the event loop, al
 CONN_TURN_REQUESTS = 4  # ... of which one client at most before the next one's turn
 RATE_TAU_S = 10.0  # time constant of a connection's request rate (eviction)
 RATE_MIN_AGE_S = 1.0  # a young connection's rate is counted over at least this long
-JUST_CONNECTED_S = 0.5
-"""How long a connection may take to complete its first request before it counts as
-half-open (a client sends its request within milliseconds of connecting; a loaded box or
-network may take a few hundred)."""
+JUST_CONNECTED_S = 0.5  # a connection's first request may take this long (a client sends
+# it within milliseconds of connecting; a loaded box or network may take a few hundred)
 
 
 def report(server: str, place: str, exc: BaseException) -> None:

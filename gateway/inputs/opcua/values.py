@@ -85,14 +85,11 @@ def refused(status: NDArray[np.uint32], points: Sequence[PointSpec],
             or (status == StatusCodes.BadTypeMismatch).any():
         return None
     names = sorted({status_name(int(c)) for c in status})
-    first = int(np.flatnonzero(status == status[0])[0])
-    p = points[first]
-    what = names[0] if len(names) == 1 else ", ".join(names)
-    hint = _HINTS.get(names[0], "the server has no value for any of them") \
-        if len(names) == 1 else "the server has no value for any of them"
-    text = (f"the server refused every one of its {len(status)} nodes ({what}; the first: "
-            f"loop {p.loop} {p.role}, {node_ids[first].to_string()}): "
-            f"{hint.format(endpoint=endpoint)}")
+    p = points[0]
+    hint = _HINTS.get(names[0], "") if len(names) == 1 else ""
+    text = (f"the server refused every one of its {len(status)} nodes ({', '.join(names)}; "
+            f"the first: loop {p.loop} {p.role}, {node_ids[0].to_string()}): "
+            f"{(hint or 'the server has no value for any of them').format(endpoint=endpoint)}")
     reason = f"nodes refused ({names[0]})" if len(names) == 1 else "nodes refused"
     return DeviceError(device, "exception", text, reason=reason)
 
