@@ -69,12 +69,13 @@ def test_a_device_that_goes_down_is_no_longer_behind_schedule(
 
 
 def test_a_client_that_just_connected_is_not_yet_half_open() -> None:
-    """The policy (fake clock, no sockets): a connection younger than JUST_CONNECTED_S
-    that has not completed a request yet is not closed for a newcomer; while one waits and
-    no connection is half-open or unread, the newcomer itself is refused. Once older, it is
-    half-open and the first to go."""
+    """The policy (fake clock, no sockets): the last connections to arrive (an eighth of
+    the slots), younger than JUST_CONNECTED_S and waiting for their first answer, are not
+    closed for a newcomer while another can be: the busiest goes (main: the one that just
+    connected). Once older it is half-open and the first to go; a flood of half-open
+    connections loses its oldest first, never a connection that completed requests."""
     now = [100.0]
-    listener = Listener("t", Conn, host="127.0.0.1", port=0, max_connections=3,
+    listener = Listener("t", Conn, host="127.0.0.1", port=0, max_connections=16,
                         idle_timeout_s=60, clock=lambda: now[0])
     quiet, busy = Conn(listener), Conn(listener)
     for k in range(200):
@@ -84,11 +85,24 @@ def test_a_client_that_just_connected_is_not_yet_half_open() -> None:
             quiet.served(1)
     just = Conn(listener)  # connected at now, its request not answered yet
     listener.conns = {quiet, busy, just}
-    assert listener.victim(now[0]) == (None, "limit")  # main: (just, "limit")
-    assert listener.victim(now[0] + JUST_CONNECTED_S / 2) == (None, "limit")
+    assert listener.victim(now[0]) == (busy, "busiest")  # main: (just, "limit")
+    assert listener.victim(now[0] + JUST_CONNECTED_S / 2) == (busy, "busiest")
     assert listener.victim(now[0] + JUST_CONNECTED_S) == (just, "limit")  # half-open now
-    listener.conns = {quiet, busy}
-    assert listener.victim(now[0]) == (busy, "busiest")
+    flood = []
+    for _ in range(13):  # a flood of half-open connections, all of them young
+        now[0] += 0.001
+        flood.append(Conn(listener))
+    listener.conns = {quiet, busy, just, *flood}
+    victims = []
+    while listener.conns - {quiet, busy}:
+        victim, reason = listener.victim(now[0])
+        assert victim is not None and reason == "limit", (victim, reason)
+        victims.append(victim)
+        listener.conns.discard(victim)
+        if len(listener.conns) == 4:  # the two kept: the newest, in their first 0.5 s
+            assert listener.conns - {quiet, busy} == set(flood[-2:])
+            break
+    assert victims == [just, *flood[:-2]]  # the oldest first
 
 
 def test_a_scada_client_reconnecting_in_a_reconnect_storm_gets_every_read() -> None:
@@ -96,7 +110,7 @@ def test_a_scada_client_reconnecting_in_a_reconnect_storm_gets_every_read() -> N
     connection for each of its 20 reads, and before it sends its request three of the
     storm's clients reconnect. Every SCADA read is answered (main: the first newcomer
     closed the SCADA connection, as the one connection that had not completed a request:
-    none answered); the storm's newcomers wait (refused) while it does."""
+    none answered); the storm's newcomers close the busiest instead."""
     now = [0.0]
 
     async def go() -> dict[str, Any]:
@@ -142,7 +156,7 @@ def test_a_scada_client_reconnecting_in_a_reconnect_storm_gets_every_read() -> N
 
     out = asyncio.run(asyncio.wait_for(go(), 50))
     assert out["answers"] == [True] * 20, out["answers"]
-    assert out["closed"]["limit"] >= 20, out["closed"]  # the newcomers waited
+    assert out["closed"]["busiest"] >= 60 and out["closed"]["limit"] == 0, out["closed"]
 
 
 def _image() -> Any:

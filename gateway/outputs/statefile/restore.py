@@ -10,9 +10,9 @@ The downtime is the wall time from the file's last write to now. A wall clock th
 *behind* the last write stepped back across the restart (an NTP correction after a reboot,
 a hand-set clock): the downtime is then unknown, not zero. It becomes a gap of
 :data:`UNKNOWN_DOWNTIME_ROWS` samples, longer than any gap the analysis bridges, and after a
-kill the sequence numbers move on by the most analysis rounds one persist interval holds, as
-if the whole interval had passed (:func:`seq_bump`); one WARNING line says so, and the report
-keeps how far back the clock was (``stiction_state_clock_back_seconds``).
+kill the sequence numbers move on by the most analysis rounds the kill can have lost (a
+persist interval and the writes around it: :func:`seq_bump`); one WARNING line says so, and
+the report keeps how far back the clock was (``stiction_state_clock_back_seconds``).
 """
 
 from __future__ import annotations
@@ -136,7 +136,7 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
     report.clock_back_s = max(0.0, -down_wall)
     down_proc = None if down_wall < 0 else down_wall * time_scale  # None: unknown
     bump = seq_bump(header, wall, config.gateway.analysis_interval_s / time_scale,
-                    config.gateway.persist_interval_s)
+                    config.gateway.persist_interval_s, written=p.stat().st_mtime)
     for name, (_k, _c, entry) in saved.items():
         i = store.index.get(name)
         seq = entry.get("seq", (entry.get("result") or {}).get("seq", 0))
@@ -202,20 +202,22 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
 
 
 def seq_bump(header: dict[str, Any], wall: float, interval_wall_s: float,
-             persist_wall_s: float) -> int:
+             persist_wall_s: float, *, written: float | None = None) -> int:
     """How much to add to the saved sequence numbers so that they never go backwards: 0
     after a clean exit (the file was written last); after a kill, one more than the analysis
     rounds that could have run between the save and now (``wall``), as the file lags the
     registers SCADA read by up to one ``persist_interval_s``. With the wall clock behind the
-    save (it stepped back) the time since is unknown: as if a whole ``persist_wall_s`` (and a
-    round more, for the write itself) had passed between the save and the kill."""
+    save (it stepped back) the time since is unknown: the rounds of the longest a kill can
+    have lost, ``persist_wall_s`` and twice the write the file took (``written``, its
+    modification time, less its save time: both by the clock that wrote it), and two more."""
     if header.get("clean") is True:
         return 0
     try:
         interval = max(float(header.get("analysis_interval_wall_s") or interval_wall_s), 1e-3)
-        down = wall - float(header["saved_wall"])
-        if down < 0:  # the rounds of a whole persist interval (and the write's), and one
-            return int(persist_wall_s // interval) + 2
-        return int(down // interval) + 1
+        saved = float(header["saved_wall"])
+        if wall < saved:
+            write_s = min(max(0.0, (written or saved) - saved), persist_wall_s + 60.0)
+            return int((persist_wall_s + 2 * write_s) // interval) + 2
+        return int((wall - saved) // interval) + 1
     except (TypeError, ValueError):
         return 1
