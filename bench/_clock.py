@@ -71,10 +71,10 @@ def _config(path: Path, state: Path) -> dict[str, int]:
 
 def seq(port: int, tries: int = 6) -> int:
     """The loop's sequence number (register 1 of its result block), as SCADA reads it
-    (again after a read that gets no answer within 5 s: a box loaded by other work)."""
+    (again after a read that gets no answer within 10 s: a box loaded by other work)."""
     for attempt in range(tries):
         try:
-            with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+            with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
                 s.sendall(read_frame(1, 0, 2))
                 reply = b""
                 while len(reply) < 13:
@@ -112,7 +112,7 @@ def window(state: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _metric(port: int, name: str) -> float | None:
-    with urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=10) as rsp:
+    with urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=60) as rsp:
         for line in rsp.read().decode().splitlines():
             if line.startswith(name + " "):
                 return float(line.split()[-1])
