@@ -1,11 +1,13 @@
-"""Issue 31 (a third round of attacks), findings 4 and 5. Each test failed on main the day
-the issue was filed (3dfa8c7).
+"""Issue 31 (a third round of attacks), findings 4, 5 and 6 (the lateness of ticks). Each
+test failed on main the day the issue was filed (3dfa8c7).
 
 4. a device that went down while flagged behind schedule kept
    ``stiction_device_behind_schedule 1`` for the whole outage: two alerts for one fault;
 5. a SCADA client reconnecting under a reconnect storm lost reads: the storm's newcomers
    closed its connection before its first request (a client that has just connected was
-   taken for half-open).
+   taken for half-open);
+6. the tests' measure of tick lateness took each tick for the nearest slot of the schedule:
+   a tick up to half a period late read as early, so the bounds could not fail.
 
 Finding 1 (a wall clock stepped back across a restart): tests/test_hostile_clock.py and
 tests/e2e/test_clock_step.py; finding 3 (OPC UA): tests/e2e/test_opcua_refusals.py.
@@ -20,6 +22,7 @@ from typing import Any
 import numpy as np
 import pytest
 from memory_harness import Harness, mconfig, mloop, wiggle
+from reliability_helpers import lateness
 
 from bench._attacks import read_frame
 from gateway.config import parse_config
@@ -161,3 +164,26 @@ def test_a_scada_client_reconnecting_in_a_reconnect_storm_gets_every_read() -> N
 
 def _image() -> Any:
     return np.arange(200, dtype=np.uint16)
+
+
+# ------------------------------------------------------------------ 6. tick lateness
+
+
+def test_the_lateness_of_ticks_is_measured_on_the_schedule_tick_after_tick() -> None:
+    """Ticks every 100 ms with 1-8 ms of jitter: on time. One 70 ms late (the red team's
+    blocked poller, bound 50 ms): main's measure read it 30 ms early and the test passed;
+    here it is a missed tick the poller did not count, and every tick after it reads a
+    period late. A tick really missed is counted where it was, the others on time."""
+    rng = np.random.default_rng(3)
+    grid = 100.0 + 0.1 * np.arange(40)
+    jitter = rng.uniform(0.001, 0.008, len(grid))
+    late, missed = lateness(list(grid + jitter), 0.1)
+    assert late.max() < 0.01 and missed.sum() == 0
+    blocked = grid + jitter
+    blocked[20] += 0.07
+    late, missed = lateness(list(blocked), 0.1)
+    assert missed.sum() == 1 or late.max() >= 0.05  # seen, either way
+    assert late.max() >= 0.09  # the ticks after it: a period off
+    skipped = np.delete(grid + jitter, 20)  # tick 20 missed (the poller counts it)
+    late, missed = lateness(list(skipped), 0.1)
+    assert missed.tolist() == [0] * 20 + [1] + [0] * 18 and late.max() < 0.01

@@ -35,7 +35,7 @@ from prometheus_client.parser import text_string_to_metric_families
 from bench._net import free_port, wait_port
 from plcsim.opcua import OpcUaPlcServer, ServerSecurity
 
-pytestmark = [pytest.mark.e2e, pytest.mark.timeout(90)]
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 LOOPS = ("FIC101", "TIC301")
 
 
@@ -186,7 +186,7 @@ def test_opcua_refusals_are_named_in_the_journal_and_the_metric(pki: Pki,
         with open(gw_log, "wb") as f:
             gw = subprocess.Popen([sys.executable, "-m", "gateway.cli", "run", "--config",
                                    str(cfg)], stdout=f, stderr=subprocess.STDOUT)
-        wait_port(metrics, 30)
+        wait_port(metrics, 60)
 
         def value(name: str, labels: dict[str, str]) -> float | None:
             return _scrape(metrics).get((name, frozenset(labels.items())))
@@ -194,14 +194,14 @@ def test_opcua_refusals_are_named_in_the_journal_and_the_metric(pki: Pki,
         def up(device: str) -> float | None:
             return value("stiction_device_up", {"device": device})
 
-        _wait(lambda: up("swapped") == up("expired") == 1, 30,
+        _wait(lambda: up("swapped") == up("expired") == 1, 60,
               f"not up:\n{gw_log.read_text()}")
         time.sleep(2.0)  # polls of the refused nodes, analysis rounds
         out["wrong"] = _state(_scrape(metrics), "wrong")
         servers.serve({port1: (pki.other_cert, pki.other_key),
                        port2: (expired, pki.server_key)})
         _wait(lambda: "(server certificate untrusted)" in gw_log.read_text()
-              and "(server certificate expired)" in gw_log.read_text(), 30,
+              and "(server certificate expired)" in gw_log.read_text(), 60,
               f"no line names the certificates:\n{gw_log.read_text()}")
         time.sleep(0.5)
         samples = _scrape(metrics)
