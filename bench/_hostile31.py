@@ -144,8 +144,8 @@ def short_window_run(tree: Path, work: Path) -> dict[str, Any]:
     plc_port = free_port()
     plc = _plc(work / "plc.yaml", plc_port, loops, scale=SCALE)
     log = work / "gw.log"
-    _gateway_yaml(work / "gw.yaml", plc_port, [n for n, _ in loops], window_s=3600.0,
-                  analysis_s=10.0, scale=SCALE)
+    ports = _gateway_yaml(work / "gw.yaml", plc_port, [n for n, _ in loops], window_s=3600.0,
+                          analysis_s=10.0, scale=SCALE)
     gw = start_gateway(tree, work / "gw.yaml", log)
     out: dict[str, Any] = {}
     try:
@@ -158,6 +158,8 @@ def short_window_run(tree: Path, work: Path) -> dict[str, Any]:
         time.sleep(2.0)  # 40 polls: the windows restart after it
         plc = _plc(work / "plc.yaml", plc_port, loops, scale=SCALE)
         time.sleep(15.0)
+        out["missed"] = _scrape_sample(ports["metrics"],
+                                       'stiction_poll_missed_ticks_total{device="plc"}')
     finally:
         stop_gateway(gw)
         plc.kill()
@@ -176,6 +178,7 @@ def short_window_run(tree: Path, work: Path) -> dict[str, Any]:
     healthy = [n for n, sc in loops if sc == "healthy"]
     sticky = [n for n, sc in loops if sc != "healthy"]
     return {
+        "missed": out["missed"],
         "healthy_called": sum("stiction" in changes[n] for n in healthy),
         "healthy_calls": sum(changes[n].count("stiction") for n in healthy),
         "sticky_changes": sum(len(changes[n]) for n in sticky) / len(sticky),
@@ -195,7 +198,8 @@ def print_short(rows: list[dict[str, Any]]) -> None:
         ("calls", lambda r: str(r["healthy_calls"])),
         ("sticky called", lambda r: f"{r['sticky_called']} of {STICKY}"),
         ("verdict changes/sticky loop", lambda r: f"{r['sticky_changes']:.1f}"),
-        ("sticky not stiction after the outage", lambda r: f"{r['sticky_lost']} of {STICKY}")])
+        ("sticky not stiction after the outage", lambda r: f"{r['sticky_lost']} of {STICKY}"),
+        ("missed ticks", lambda r: "?" if r["missed"] is None else f"{r['missed']:.0f}")])
     for r in rows:
         if "failed" not in r:
             print(f"  {r['variant']}: sticky loops' verdicts in turn {r['sticky_story']}; "
@@ -237,13 +241,10 @@ def storm_run(tree: Path, work: Path, plc_port: int) -> dict[str, Any]:
         out["attacker"] = conn.recv() if conn.poll(30) else {}
         lat = scada.between(t0, t1)
         out["asked"], out["answered"] = len(lat), int(np.isfinite(lat).sum())
-        with contextlib.suppress(OSError):
-            with urllib.request.urlopen(f"http://127.0.0.1:{ports['metrics']}/metrics",
-                                        timeout=10) as rsp:
-                text = rsp.read().decode()
-            out["closed"] = {r: _sample(text, "stiction_server_connections_closed_total"
-                                              f'{{reason="{r}",server="modbus"}}')
-                             for r in ("limit", "busiest")}
+        out["closed"] = {r: _scrape_sample(ports["metrics"],
+                                           "stiction_server_connections_closed_total"
+                                           f'{{reason="{r}",server="modbus"}}')
+                         for r in ("limit", "busiest")}
         out["storm_rate"] = out["attacker"].get("answers", 0) / (t1 - t0 + 3.0)
     finally:
         scada.stop.set()
@@ -253,10 +254,13 @@ def storm_run(tree: Path, work: Path, plc_port: int) -> dict[str, Any]:
     return out
 
 
-def _sample(text: str, series: str) -> float | None:
-    for line in text.splitlines():
-        if line.startswith(series + " "):
-            return float(line.split()[-1])
+def _scrape_sample(port: int, series: str) -> float | None:
+    """One sample of the gateway's /metrics (None: absent, or no answer)."""
+    with contextlib.suppress(OSError), \
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=30) as rsp:
+        for line in rsp.read().decode().splitlines():
+            if line.startswith(series + " "):
+                return float(line.split()[-1])
     return None
 
 
