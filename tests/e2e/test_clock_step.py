@@ -50,6 +50,7 @@ def test_a_wall_clock_stepped_back_across_restarts_is_a_gap_and_seq_never_goes_b
          f"restart", 0 < s["segment"] <= s["since_restart"]),
         (f"no warning line:\n{out['log2']}", s["warned"]),
         (f"stiction_state_clock_back_seconds {s['clock_back']}",
-         s["clock_back"] is not None and 3590 < s["clock_back"] < 3600),
+         s["clock_back"] is not None and 3600 - 120 < s["clock_back"] < 3600),  # less the
+        # time from run 1's last write to run 2's restore (17 s at a load of 15)
     ) if not ok]
     assert not broken, "\n".join(broken)  # every count, so that a failure shows them all

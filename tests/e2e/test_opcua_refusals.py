@@ -35,7 +35,7 @@ from prometheus_client.parser import text_string_to_metric_families
 from bench._net import free_port, wait_port
 from plcsim.opcua import OpcUaPlcServer, ServerSecurity
 
-pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(300)]
 LOOPS = ("FIC101", "TIC301")
 
 
@@ -100,7 +100,7 @@ class Servers:
         async def every() -> None:
             await asyncio.gather(*(one(p, c, k) for p, (c, k) in certs.items()))
 
-        asyncio.run_coroutine_threadsafe(every(), self.loop).result(60)
+        asyncio.run_coroutine_threadsafe(every(), self.loop).result(150)  # a loaded box
 
     def close(self) -> None:
         async def stop() -> None:
