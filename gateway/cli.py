@@ -74,10 +74,12 @@ def main(argv: list[str] | None = None) -> int:
     # the sources report every pymodbus failure as a DeviceError, logged once per outage by
     # the poller; pymodbus' own per-attempt lines would repeat it every retry
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    # likewise asyncua: the OPC UA source maps its failures to DeviceError; its own loggers
-    # would add hostname warnings and a traceback for every refused certificate
+    # likewise asyncua: the OPC UA source maps its failures to DeviceError, named from the
+    # status codes; asyncua's own ERROR lines (a refused certificate: "Not trusted
+    # certificate used" and a traceback, "certificate is no longer valid") would stand
+    # beside the poller's line in the journal, or instead of it
     for name in ("asyncua", "asyncuagds"):
-        logging.getLogger(name).setLevel(logging.ERROR)
+        logging.getLogger(name).setLevel(logging.CRITICAL)
     try:
         return _dispatch(args)
     except ConfigError as exc:

@@ -26,8 +26,22 @@ from .config import (
 if TYPE_CHECKING:
     from ...config import DeviceConfig
 
-__all__ = ["POINT_ADDRESS_KEY", "OpcUaDeviceConfig", "OpcUaInput", "OpcUaPoint",
-           "OpcUaSecurity", "create_input", "parse_device", "parse_node_id", "parse_point"]
+__all__ = ["POINT_ADDRESS_KEY", "SPAN_WORDS", "OpcUaDeviceConfig", "OpcUaInput", "OpcUaPoint",
+           "OpcUaSecurity", "create_input", "parse_device", "parse_node_id", "parse_point",
+           "point_span", "span_text"]
+
+SPAN_WORDS = ("is", "node", "node id")
+"""How check-config names two points of one node (gateway.config.overlaps)."""
+
+
+def point_span(address: OpcUaPoint) -> tuple[str, int, int]:
+    """The node a point reads, for the config's overlap check (:mod:`gateway.config.overlaps`):
+    two points of one device with the same (canonical) node id overlap."""
+    return address.node, 0, 1
+
+
+def span_text(space: str, first: int, end: int) -> str:
+    return f"node {space}"
 
 
 def create_input(device: DeviceConfig, points: Sequence[PointSpec], **_: Any) -> OpcUaInput:
