@@ -129,7 +129,7 @@ def _text(r: StepTestReport, notes: list[str]) -> str:
     for s in r.steps:
         over = "-" if s.overshoot is None else f"{100 * s.overshoot:.0f} %"
         lines.append(f"{s.time_s:9.0f} {s.op_step:8.3g} {'yes' if s.moved else 'no':>5} "
-                     f"{_fmt(s.travel):>8} {_fmt(s.gain, '.2f'):>6} "
+                     f"{_fmt(s.travel if s.moved else None):>8} {_fmt(s.gain, '.2f'):>6} "
                      f"{_fmt(s.dead_time_s, '.1f'):>7} {_fmt(s.t63_s, '.1f'):>7} "
                      f"{_fmt(s.t86_s, '.1f'):>7} {over:>9}")
     lines += [f"  note: {n}" for n in notes]
