@@ -80,14 +80,12 @@ class PrometheusSink:
     async def bind(self, binding: Binding) -> None:
         cfg = binding.config
         if self.collector is None:
-            self.collector = StoreCollector(binding.store)
+            self.collector = StoreCollector(binding.store, self.findings)
             self.registry.register(self.collector)
             self.registry.register(PlantCollector(
                 lambda: self.collector.store if self.collector is not None else None))
             if self.findings is not None:
-                self.registry.register(FindingsCollector(
-                    self.findings,
-                    lambda: self.collector.store.loops if self.collector is not None else ()))
+                self.registry.register(FindingsCollector(self.findings))
         else:
             self.collector.store = binding.store
         self.metrics.set_identity(cfg.gateway.site, cfg.gateway.area)
