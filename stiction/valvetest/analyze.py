@@ -4,8 +4,9 @@ and per-step response out (:class:`StepTestReport`).
 The path: OP split into holds and steps (:mod:`.holds`, or refused as no step test); the
 response identified on the largest steps and every step's share fitted at once
 (:mod:`.response`); a step *moved* the valve when its share exceeds four standard errors
-and 1 % of the three largest shares; the valve's travel is that share over the process
-gain (PV), or the share itself (position); dead band, resolution and slip from which
+and 1 % of the largest share (the fit's misfit grows with it); the valve's travel is that
+share over the process gain (PV), or the share itself (position); dead band, resolution
+and slip from which
 steps moved (:mod:`.bands`); the response times of every step that moved
 (:mod:`.timing`). Sizes are in OP units, or % of span with ``op_range``.
 """
@@ -33,7 +34,7 @@ __all__ = ["SOURCES", "StepResult", "StepTestDetails", "StepTestReport", "analyz
 SOURCES = ("pv", "position")
 PROCESSES = ("auto", "self-regulating", "integrating")
 Z_MOVED = 4.0  # standard errors a step's share must exceed to count as a move
-FLOOR = 0.01  # ... and this share of what the largest steps did
+FLOOR = 0.01  # ... and this share of the largest move
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,8 +133,8 @@ def step_test_details(op: ArrayLike, response: ArrayLike, ts: float, *, source: 
     dyn = fit_dynamics(y, holds, ts, kinds)
     moves = fit_moves(y, holds, ts, dyn)
     steps = holds.op_steps
-    largest = np.sort(np.abs(moves.size))[-3:]
-    floor = max(FLOOR * float(np.median(largest)), 1e-9 * float(np.nanmax(np.abs(y))))
+    # a move must stand out of the fit's misfit too, which grows with the largest move
+    floor = max(FLOOR * float(np.max(np.abs(moves.size))), 1e-9 * float(np.nanmax(np.abs(y))))
     moved = (np.abs(moves.size) > Z_MOVED * moves.se) & (np.abs(moves.size) > floor)
     gain, notes = _gain(holds.level, moves.size, moved)
     # the valve's travel, signed as OP: a position is in OP's units; a PV's share over the

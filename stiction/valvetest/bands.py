@@ -14,10 +14,15 @@ Definitions (ANSI/ISA-75.25.01, ISA-51.1; EnTech's Control Valve Dynamic Specifi
 
 Each move of the valve brackets one of the first two: between the furthest OP travel that
 did not move it (since its last move) and the travel at the step that did; every step that
-did not move it is a lower bound. The estimate is the middle of the bracket all moves
-agree on (so its error is at most half the step size there), 0 when the valve always
-followed the first step and that step was the test's smallest (the value is then below
-what the test can see: ``bounds`` says how far).
+did not move it is a lower bound. The estimate lies in the bracket all moves agree on (so
+its error is at most the step size there), 0 when the valve always followed the first step
+and that step was the test's smallest (the value is then below what the test can see:
+``bounds`` says how far). The resolution is the bracket's middle. The dead band is read
+closer where the valve's travel is known: a valve with lost motion (He's model with K =
+1, Choudhury's, Kano's), moving again after a reversal, sits as far from OP on the other
+side as before, so the OP travel to that move less the valve's travel is the band's
+width without the stick band, and that plus the resolution is the dead band (kept inside
+the bracket): exact between coarse steps too, and a valve that follows every step reads 0.
 Moves that disagree (the valve does not repeat itself, or noise took a move or made one)
 give the median of their own brackets' middles instead, each weighted by how narrow its
 bracket is, with a note.
@@ -58,18 +63,27 @@ class _Collect:
     lows: list[float] = dataclasses.field(default_factory=list)
     brackets: list[tuple[float, float]] = dataclasses.field(default_factory=list)
 
-    def band(self, smallest: float) -> Band:
+    def band(self, smallest: float, guesses: list[float] | None = None) -> Band:
+        """The figure: the middle of the bracket all moves agree on, 0 below the finest
+        step (with ``guesses``, one a bracket: their median, kept inside it); the
+        weighted median of the brackets' own points when they disagree."""
         lows = [*self.lows, *(lo for lo, _hi in self.brackets)]
         low = max(lows, default=0.0)
         if not self.brackets:
             return Band(None, low, math.inf)
         high = min(hi for _lo, hi in self.brackets)
+        points = [min(max(g, lo), hi) for g, (lo, hi) in zip(guesses, self.brackets,
+                                                                strict=True)] \
+            if guesses else [(lo + hi) / 2.0 for lo, hi in self.brackets]
         if low < high or math.isclose(low, high):
+            if guesses:
+                return Band(min(max(float(np.median(points)), low), high), low, high)
             below = low <= 0 and high <= smallest * (1 + 1e-9)  # under the finest step
             return Band(0.0 if below else (low + high) / 2.0, low, high)
         lo_all = min(lo for lo, _hi in self.brackets)
         hi_all = max(hi for _lo, hi in self.brackets)
-        return Band(_weighted_median(self.brackets), lo_all, hi_all, consistent=False)
+        return Band(_weighted_median(points, self.brackets), lo_all, hi_all,
+                    consistent=False)
 
 
 def bands(levels: FloatArray, moved: np.ndarray, travel: FloatArray) -> Bands:
@@ -110,7 +124,13 @@ def bands(levels: FloatArray, moved: np.ndarray, travel: FloatArray) -> Bands:
         dead.lows.append(back_max)
     op_steps = np.abs(np.diff(levels))
     smallest = float(op_steps[op_steps > 0].min()) if (op_steps > 0).any() else 0.0
-    deadband, resolution = dead.band(smallest), res.band(smallest)
+    resolution = res.band(smallest)
+    # a valve with lost motion, once it moves after a reversal, sits as far from OP on
+    # the other side as it sat before: OP travel less valve travel is that width, the
+    # dead band less the stick band (the resolution). One reversal tells it even between
+    # coarse steps; the bracket keeps it honest
+    stick = resolution.value or 0.0
+    deadband = dead.band(smallest, [op - v + stick for v, op in back_breaks])
     notes = []
     for name, b in (("dead band", deadband), ("resolution", resolution)):
         if not b.consistent:
@@ -120,10 +140,10 @@ def bands(levels: FloatArray, moved: np.ndarray, travel: FloatArray) -> Bands:
     return Bands(deadband, resolution, slip, tuple(notes))
 
 
-def _weighted_median(brackets: list[tuple[float, float]]) -> float:
-    """Median of the brackets' middles, each weighted by how narrow it is (a move after a
-    small step says more than one after a large step)."""
-    mids = np.array([(lo + hi) / 2.0 for lo, hi in brackets])
+def _weighted_median(points: list[float], brackets: list[tuple[float, float]]) -> float:
+    """Median of the brackets' points, each weighted by how narrow its bracket is (a move
+    after a small step says more than one after a large step)."""
+    mids = np.array(points)
     width = np.array([max(hi - lo, 1e-12) for lo, hi in brackets])
     order = np.argsort(mids)
     w = np.cumsum(1.0 / width[order])

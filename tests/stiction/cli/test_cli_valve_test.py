@@ -100,3 +100,22 @@ def test_missing_column_names_the_option(tmp_path: Path,
         main(["valve-test", str(_csv(tmp_path, np.full(40, 1.0))), "--position", "vp"])
     assert info.value.code == 2
     assert "no column 'vp'" in capsys.readouterr().err
+
+
+def test_simulate_writes_a_step_test_that_valve_test_reads(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "st.csv"
+    assert main(["simulate", "--scenario", "table5-case1", "--fs", "0.02", "--fd", "0.01",
+                 "--k", "1", "--noise", "0.02", "--step-test", "20", "-o", str(out)]) == 0
+    assert "wrote 3960 samples" in capsys.readouterr().out  # 198 levels of 20 s
+    assert out.read_text().splitlines()[0] == "t,op,pv,vp"
+    got = _json(capsys, ["valve-test", str(out), "--position", "vp", "--op-range", "0",
+                         "100", "--json"])
+    assert got["deadband"] == pytest.approx(3.0, abs=0.3)  # fs + fd
+    assert got["resolution"] == pytest.approx(1.0, abs=0.2)  # fs - fd
+    got = _json(capsys, ["valve-test", str(out), "--op-range", "0", "100", "--json"])
+    assert got["process"] == "integrating"  # a level loop, told from the data
+    assert got["deadband"] == pytest.approx(3.0, abs=0.3)
+    with pytest.raises(SystemExit):
+        main(["simulate", "--scenario", "table4-case1", "--step-test", "3", "-o", str(out)])
+    assert "--step-test: 3 s holds fewer than 5 samples" in capsys.readouterr().err

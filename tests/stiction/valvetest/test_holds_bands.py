@@ -77,9 +77,32 @@ def test_bands_bracket_the_first_move_after_a_reversal() -> None:
     travel = np.array([0, 2.0, 0, 0, 0, 0, -1.0, 0, 0, -1.5])
     b = bands(levels, moved, travel)
     assert (b.deadband.low, b.deadband.high) == (2.0, 2.5)
-    assert b.deadband.value == pytest.approx(2.25)
+    # the valve travelled 1.0 of OP's 2.5 back: a width of 1.5, plus the resolution (1.25)
+    # is 2.75, kept inside the bracket
+    assert b.deadband.value == pytest.approx(2.5)
     assert (b.resolution.low, b.resolution.high) == (1.0, 1.5)  # 49.5 -> 48.5 did not, 48 did
     assert b.slip == pytest.approx(1.5)  # it stuck two steps, then jumped 1.5
+
+
+def test_lost_motion_reads_the_dead_band_between_coarse_steps() -> None:
+    """He's valve with K = 1, fs 3, fd 1 (dead band 4, resolution 2) under 5 % steps: the
+    bracket is (0, 5]; the travel after the reversal (3 of 5) tells the lost motion, 2 fd
+    = 2, plus the resolution where the steps see one (here they cannot: every 5 % step
+    moved it, so it reads 0, below the finest step)."""
+    levels = np.array([50.0, 55.0, 60.0, 55.0, 50.0, 45.0])
+    moved = np.ones(5, bool)
+    travel = np.array([4.0, 5.0, -3.0, -5.0, -5.0])  # x = u - fd going up, u + fd down
+    b = bands(levels, moved, travel)
+    assert (b.deadband.low, b.deadband.high) == (0.0, 5.0)
+    assert b.resolution.value == 0.0 and b.resolution.high == 5.0
+    assert b.deadband.value == pytest.approx(2.0)
+    # with 1 % steps after the move the stick band shows: 2 + 2 (bracket (1, 2]: 1.5)
+    levels = np.array([50.0, 55.0, 60.0, 55.0, 54.0, 53.0, 52.0])
+    moved = np.array([True, True, True, False, True, False])
+    travel = np.array([4.0, 5.0, -3.0, 0.0, -2.0, 0.0])
+    b = bands(levels, moved, travel)
+    assert b.resolution.value == pytest.approx(1.5)
+    assert b.deadband.value == pytest.approx(2.0 + 1.5)
 
 
 def test_a_valve_that_follows_every_step_has_no_band_below_the_smallest_step() -> None:
