@@ -144,6 +144,10 @@ class Config:
     # loops whose result_address the loader assigned (config/addresses.py), in config order
     assigned: tuple[str, ...] = ()
     plant: PlantSettings = PlantSettings()
+    # the engineer's findings file (`findings:`, relative paths resolved against the
+    # config's folder); None: none. Read at start and on SIGHUP, never by load_config: a
+    # bad findings file never makes the config invalid (gateway.config.findings)
+    findings: str | None = None
 
     def device(self, name: str) -> DeviceConfig:
         for dev in self.devices:

@@ -210,6 +210,17 @@ def children(pid: int) -> list[int]:
     return []
 
 
+def sigkill(proc: subprocess.Popen[bytes]) -> None:
+    """SIGKILL a gateway and then its analysis workers (SIGKILL orphans them: systemd's
+    KillMode=mixed would end them, here the test does)."""
+    workers = children(proc.pid)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(10)
+    for pid in workers:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+
+
 def start_gateway(cfg: Path, log: Path, env: dict[str, str] | None = None
                   ) -> subprocess.Popen[bytes]:
     with open(log, "ab") as f:
