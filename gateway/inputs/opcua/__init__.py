@@ -12,7 +12,6 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from ...core.points import PointSpec
-from .client import OpcUaInput
 from .config import (
     POINT_ADDRESS_KEY,
     OpcUaDeviceConfig,
@@ -25,6 +24,7 @@ from .config import (
 
 if TYPE_CHECKING:
     from ...config import DeviceConfig
+    from .client import OpcUaInput
 
 __all__ = ["POINT_ADDRESS_KEY", "SPAN_WORDS", "OpcUaDeviceConfig", "OpcUaInput", "OpcUaPoint",
            "OpcUaSecurity", "create_input", "parse_device", "parse_node_id", "parse_point",
@@ -49,4 +49,16 @@ def create_input(device: DeviceConfig, points: Sequence[PointSpec], **_: Any) ->
     options: OpcUaDeviceConfig = device.options
     cfg = dataclasses.replace(options, name=device.name, poll_interval_s=device.poll_interval_s,
                               timeout_s=device.timeout_s)
+    from .client import OpcUaInput  # noqa: PLC0415  (asyncua: 2-4 s, only when polling)
+
     return OpcUaInput(cfg, points)
+
+
+def __getattr__(name: str) -> Any:
+    """``OpcUaInput`` on first use (PEP 562): reading or checking a config (check-config, the
+    overlap check of every protocol) never imports asyncua."""
+    if name == "OpcUaInput":
+        from .client import OpcUaInput  # noqa: PLC0415
+
+        return OpcUaInput
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
