@@ -155,6 +155,10 @@ class Config:
     assigned: tuple[str, ...] = ()
     plant: PlantSettings = PlantSettings()
     hysteresis: HysteresisSettings = HysteresisSettings()
+    # the engineer's findings file (`findings:`, relative paths resolved against the
+    # config's folder); None: none. Read at start and on SIGHUP, never by load_config: a
+    # bad findings file never makes the config invalid (gateway.config.findings)
+    findings: str | None = None
 
     def device(self, name: str) -> DeviceConfig:
         for dev in self.devices:

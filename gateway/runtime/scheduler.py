@@ -48,6 +48,7 @@ from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolv
 from ..core.plant import PlantTracker, analyze_plant_job, plant_jobs
 from ..core.store import LoopResult, ResultStore
 from ..core.windows import LoopGroup
+from .logs import clip, sizes_text
 
 __all__ = ["DEFAULT_ANALYZE", "WORKER_NICE", "AnalysisScheduler", "die_with_parent",
            "log_verdict_change"]
@@ -292,6 +293,6 @@ def log_verdict_change(loop: str, before: LoopResult | None, after: Assessment) 
     was = str(before.assessment.verdict) if before is not None else "none"
     if was == str(after.verdict):
         return
-    reason = " ".join(after.reason.split())
-    log.info("loop %s: verdict %s (was %s): %s", loop, after.verdict, was,
-             reason if len(reason) <= 200 else reason[:197] + "...")
+    sized = sizes_text(after)
+    log.info("loop %s: verdict %s (was %s)%s: %s", loop, after.verdict, was,
+             f", {sized} (as its registers)" if sized else "", clip(after.reason))

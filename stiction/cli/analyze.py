@@ -21,7 +21,7 @@ from ..diagnosis.reasons import WHAT
 from ..diagnosis.stretch import Stretch, regular_stretch
 from . import historian
 from ._common import Subparsers, UsageError
-from .plot import plot_analysis
+from .plot import plot_analysis, window_clock
 
 
 # ------------------------------------------------------------------------------- analyze
@@ -55,13 +55,14 @@ def add_analyze(sub: Subparsers) -> None:
                    "first row")
     p.add_argument("--to", dest="stop", default=None, metavar="TIME",
                    help="analyse up to this time (as --from)")
+    historian.add_reading_options(p)
     p.add_argument("--json", action="store_true", help="print the assessment as one JSON object")
     p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to FILE.png")
     p.set_defaults(handler=_cmd_analyze)
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    table = historian.read_table(args.file)
+    table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     notes = list(table.notes)
     op_col = historian.column(table, args.op, "--op")
     pv_col = historian.column(table, args.pv, "--pv")
@@ -79,14 +80,17 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     op, op_note = historian.numbers(table, op_col)
     pv, pv_note = historian.numbers(table, pv_col)
     notes += [n for n in (op_note, pv_note) if n]
-    if t_col is not None:
-        t = historian.times(table, t_col)
+    t = None if t_col is None else historian.times(table, t_col)
+    if t is not None and t_col is not None:
         ts, op, pv, grid = historian.on_grid(args.file, table.header[t_col], t, op, pv)
         notes += grid
     else:
-        ts, t = args.ts, np.arange(len(table.rows)) * args.ts
-    clock = FileTime(table, t_col, t, ts)
+        ts = args.ts
+    secs = np.arange(len(table.rows)) * ts if t is None else t.seconds
+    clock = FileTime(table, t_col, secs, ts)
     first, op, pv = clock.cut(args, op, pv)
+    shown_from = window_clock(t, ts, op, pv)  # the plot's axis: the file's time
+    shown_from = dataclasses.replace(shown_from, start=shown_from.start + first * ts)
     op_range = None if args.op_range is None else tuple(args.op_range)
     d = analyze_details(op, pv, ts=ts, kp=args.kp, delay=args.delay, process=args.process,
                         op_range=op_range)
@@ -100,7 +104,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     else:
         _print(a, shown)
     if args.plot is not None:
-        plot_analysis(args.plot, d, ts, op_range)
+        plot_analysis(args.plot, d, ts, op_range, shown_from)
         if not args.json:
             print(f"wrote {args.plot}")
     return 0
@@ -183,7 +187,7 @@ class FileTime:
         row[self.col] = text
         one = dataclasses.replace(self.table, rows=[row], lines=[0])
         try:
-            return float(historian.times(one, self.col)[0])
+            return float(historian.times(one, self.col).seconds[0])
         except UsageError:
             raise UsageError(f"{option} {text!r}: not a time as the file writes them "
                              f"(e.g. {self.text(0)!r})") from None

@@ -93,6 +93,12 @@ class GatewayMetrics:
             "started empty), by reason.", ["reason"], registry=registry)
         for reason in STATE_SET_ASIDE:
             self.state_set_aside.labels(reason=reason)
+        self.state_clock_back = Gauge(
+            f"{PREFIX}_state_clock_back_seconds", "How far the wall clock was behind the "
+            "state file's last write when the gateway started (0: not behind). Above 0 the "
+            "clock stepped back across the restart (an NTP correction after a reboot?): the "
+            "downtime was unknown, restored as a gap, and sequence numbers moved on as "
+            "after a kill.", registry=registry)
         self.servers = ServerCollector()
         registry.register(self.servers)
         self.build = Info(f"{PREFIX}_build", "Version of the gateway, and its site and area "
