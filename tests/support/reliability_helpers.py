@@ -240,7 +240,9 @@ def stop(proc: subprocess.Popen[bytes], sig: int = signal.SIGTERM, limit_s: floa
         return proc.wait(5)
 
 
-def wait_log(log: Path, text: str, limit_s: float = 30.0) -> str:
+def wait_log(log: Path, text: str, limit_s: float = 90.0) -> str:
+    """Wait for ``text`` in ``log``; the default bounds a gateway's start on a loaded box (its
+    imports took over 30 s with the suite's four workers and another run on two cores)."""
     deadline = time.monotonic() + limit_s
     while time.monotonic() < deadline:
         content = log.read_text(errors="replace") if log.exists() else ""
