@@ -23,10 +23,10 @@ about 15 s of wall time (its window holds 2.6 of its cycles), the level loop aft
 20 s (``undetermined`` first, ``stiction`` once it has held 5 rounds: the verdict
 hysteresis). The plant's group shows in the rounds whose plant-wide step finds the shared
 cycle, once the plant windows are full (30 s); U2.FIC101's valve is small and its own verdict
-mostly ``undetermined``, so that depends on each round's windows (README). No verdict changes once a loop's window is full
-(``tests/plcsim/test_demo_verdicts.py``, the demo replayed in memory).
-Under the table, a legend (:data:`LEGEND`) and what each verdict on screen asks of the
-engineer (:data:`VERDICT_ADVICE`).
+mostly ``undetermined``, so that depends on each round's windows (README). No verdict
+changes once a loop's window is full (``tests/plcsim/test_demo_verdicts.py``, the demo
+replayed in memory). Under the table, a legend (:data:`LEGEND`) and what each verdict on
+screen asks of the engineer (:data:`VERDICT_ADVICE`).
 """
 
 from __future__ import annotations
