@@ -70,7 +70,9 @@ class Sizes:
     ``fs`` (None without kp) and ``jump`` (the valve's slip J = K (fs - fd), He & Wang 2014
     eq 7; None without fs) are in it. ``cycles_used`` is the number of limit cycles whose
     jumps were read, None when the size came from another method (the valve fitted to PV,
-    the OP-PV ellipse: the reason names it).
+    the OP-PV ellipse: the reason names it). ``band`` (dead band plus stick band, S of
+    Choudhury's model) is set only where the size was measured from the valve's travel
+    (:mod:`stiction.quantify.travel`); the JSON then shows it with ``slip`` (= ``jump``).
     """
 
     unit: str
@@ -78,6 +80,12 @@ class Sizes:
     fs: float | None
     jump: float | None
     cycles_used: int | None
+    band: float | None = None
+
+    @property
+    def slip(self) -> float | None:
+        """The valve's jump when it breaks free (J): ``jump``, named as the travel reads it."""
+        return self.jump
 
     @property
     def of_span(self) -> bool:
@@ -89,6 +97,9 @@ class Sizes:
                                "jump": self.jump}
         if self.cycles_used is not None:
             out["cycles_used"] = self.cycles_used
+        if self.band is not None:
+            out["band"] = self.band
+            out["slip"] = self.slip
         return out
 
 
@@ -100,6 +111,8 @@ class Assessment:
     He & Wang (2014) Table 2; ``fd_op`` and ``fs_op`` are the same in OP units (for
     ``op_range=(0, 100)``, percent). Fields that were not estimated are ``None``. What
     the outputs show is :meth:`sizes`: one unit, labelled, the jump wherever fd and fs are.
+    ``band`` / ``band_op`` (dead band plus stick band, fraction of span / OP units) are set
+    only where the valve's position was read and the size measured from its travel.
     """
 
     verdict: Verdict
@@ -117,6 +130,8 @@ class Assessment:
     warnings: tuple[str, ...] = ()
     confidence: float | None = None
     evidence: tuple[Evidence, ...] = ()
+    band: float | None = None
+    band_op: float | None = None
 
     def sizes(self, k: float = DEFAULT_K) -> Sizes | None:
         """The size in one unit (:class:`Sizes`): percent of span when the OP range was
@@ -124,9 +139,9 @@ class Assessment:
         not give itself (the valve fitted to PV gives fd and fs) is K (fs - fd), the
         relation the limit cycle's sizing holds to; ``k`` is the K the analysis used."""
         if self.fd is not None:
-            unit, scale, fd, fs = SPAN, 100.0, self.fd, self.fs
+            unit, scale, fd, fs, band = SPAN, 100.0, self.fd, self.fs, self.band
         elif self.fd_op is not None:
-            unit, scale, fd, fs = OP_UNITS, 1.0, self.fd_op, self.fs_op
+            unit, scale, fd, fs, band = OP_UNITS, 1.0, self.fd_op, self.fs_op, self.band_op
         else:
             return None
         jump = self.jump if unit == SPAN else None
@@ -134,7 +149,8 @@ class Assessment:
             jump = k * (fs - fd)
         return Sizes(unit, fd * scale, None if fs is None else fs * scale,
                      None if jump is None else jump * scale,
-                     self.cycles_used if self.cycles_used > 0 else None)
+                     self.cycles_used if self.cycles_used > 0 else None,
+                     None if band is None else band * scale)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping with exactly the field names of the dataclass."""

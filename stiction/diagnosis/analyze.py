@@ -28,6 +28,7 @@ from ..detectors.ellipse import EllipseFit
 from ..detectors.hammerstein import HammersteinFit
 from ..quantify.hewang import Quantification, quantify
 from ..quantify.route import limit_cycle, size_valve
+from ..quantify.travel import Travel, measure_travel
 from ..signal.cycle import Cycle, find_cycle
 from . import model as learned
 from .enough import SEE_CYCLES, movement_scales, too_short
@@ -36,6 +37,7 @@ from .features import features
 from .quality import check_quality
 from .reasons import not_stiction, size_text, stiction_head
 from .responding import held_while_op_ran
+from .travel import apply_travel
 
 __all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
 
@@ -54,6 +56,7 @@ class Details:
     findings: Findings | None = None
     parts: Mapping[str, float] | None = None  # what weighed in the decision (reasons.weighed)
     start: int = 0  # index of op[0] in the caller's window (a leading gap trimmed)
+    travel: Travel | None = None  # what the valve's position said, where it was given
 
 
 def _series(name: str, value: ArrayLike) -> FloatArray:
@@ -128,6 +131,7 @@ def analyze(
     process: str = "self-regulating",
     op_range: tuple[float, float] | None = None,
     k: float = 1.99,
+    position: ArrayLike | None = None,
 ) -> Assessment:
     """Decide whether one window of a loop oscillates, whether stiction causes it, and size it.
 
@@ -156,6 +160,15 @@ def analyze(
         reported in OP units (``fd_op``/``fs_op``), as the reason says.
     k
         Overshoot factor K of He's model, in [1, 2]; 1.99 unless the valve is known.
+    position
+        The valve's position as its positioner reports it, in OP units (% of span when OP
+        is), sampled with OP; optional. Where it is usable, stiction is measured from OP
+        against the valve's travel (:mod:`stiction.quantify.travel`: the band, the slip,
+        and fd, fs from them) and that decides the verdict (:mod:`.travel`: ``stiction``,
+        ``no_stiction`` for a valve that follows OP whatever PV does,
+        ``valve_not_responding``); where it is not (all NaN, too gappy, a valve that never
+        reversed) the verdict is OP and PV's, as without it. The evidence ``travel`` says
+        which source decided.
 
     Returns
     -------
@@ -171,7 +184,7 @@ def analyze(
         An argument is unusable (non-numeric data, unequal lengths, ts <= 0, ...).
     """
     return analyze_details(op, pv, ts=ts, kp=kp, delay=delay, process=process,
-                           op_range=op_range, k=k).assessment
+                           op_range=op_range, k=k, position=position).assessment
 
 
 def analyze_details(
@@ -185,14 +198,31 @@ def analyze_details(
     op_range: tuple[float, float] | None = None,
     k: float = 1.99,
     force_quantify: bool = False,
+    position: ArrayLike | None = None,
 ) -> Details:
     """:func:`analyze` with its intermediate results. ``force_quantify`` runs the
     quantification even when detection does not say stiction (as the paper's Table 6 does
     for every row); the verdict is unchanged and the sizes are then left out of the
-    assessment but available in ``Details.quantification``."""
+    assessment but available in ``Details.quantification``. ``position``: as for
+    :func:`analyze`."""
     op_a, pv_a, ts_, kp_, delay_, span, k_ = _validate(
         op, pv, ts=ts, kp=kp, delay=delay, process=process, op_range=op_range, k=k)
-    integrating = process == "integrating"
+    pos_a = None if position is None else _series("position", position)
+    if pos_a is not None and pos_a.size != op_a.size:
+        raise ParameterError("position", f"must have the same length as op ({pos_a.size} != "
+                                         f"{op_a.size})")
+    d = _op_pv(op_a, pv_a, ts=ts_, kp=kp_, delay=delay_, span=span, k=k_,
+               integrating=process == "integrating", force_quantify=force_quantify)
+    if pos_a is None:
+        return d
+    travel = measure_travel(op_a, pos_a, k=k_, span=span)
+    return dataclasses.replace(d, assessment=apply_travel(d.assessment, travel, span=span,
+                                                          k=k_), travel=travel)
+
+
+def _op_pv(op_a: FloatArray, pv_a: FloatArray, *, ts: float, kp: float | None, delay: float,
+           span: float | None, k: float, integrating: bool, force_quantify: bool) -> Details:
+    """The diagnosis from OP and PV alone (the module's path)."""
     q = check_quality(op_a, pv_a, span)
     warnings = tuple(q.warnings)
     if q.not_responding is not None:
@@ -206,11 +236,11 @@ def analyze_details(
     # (or too few samples) is too short here
     short = too_short(op_c.size, scales=None if cycle.cycling else movement_scales(op_c, pv_c))
     if short is not None and short.withdraws(Verdict.STICTION):  # too short for any verdict
-        return Details(Assessment(Verdict.BAD_DATA, short.reason(ts_), warnings=warnings),
+        return Details(Assessment(Verdict.BAD_DATA, short.reason(ts), warnings=warnings),
                        op_c, pv_c, cycle=cycle, start=q.start)
-    found = gather(op_c, pv_c, cycle, integrating=integrating, ts=ts_)
+    found = gather(op_c, pv_c, cycle, integrating=integrating, ts=ts)
     d = dataclasses.replace(_decide(
-        op_c, pv_c, cycle, found, ts=ts_, kp=kp_, delay=delay_, span=span, k=k_,
+        op_c, pv_c, cycle, found, ts=ts, kp=kp, delay=delay, span=span, k=k,
         integrating=integrating, force_quantify=force_quantify, warnings=warnings),
         start=q.start)
     if d.assessment.verdict == Verdict.NOT_OSCILLATING and (
@@ -220,7 +250,7 @@ def analyze_details(
         return dataclasses.replace(d, assessment=a)
     if short is not None and short.withdraws(d.assessment.verdict):  # a part of a slow cycle
         a = dataclasses.replace(d.assessment, verdict=Verdict.BAD_DATA,
-                                reason=short.reason(ts_), confidence=None)
+                                reason=short.reason(ts), confidence=None)
         return dataclasses.replace(d, assessment=a)
     return d
 
