@@ -203,7 +203,7 @@ def _settings(sec: Section, cls: Callable[..., T], keys: Mapping[str, Callable[[
 
 def _parse_point(sec: Section, device: DeviceConfig | None,
                  protocol: str | None) -> PointConfig | None:
-    """A loop's op/pv point; with ``device`` None (the device itself is invalid) the keys
+    """A loop's op/pv/position point; with ``device`` None (the device itself is invalid) the keys
     are still checked against ``protocol`` if known, so every problem is reported."""
     scale = sec.opt("scale", s.number(), 1.0)
     offset = sec.opt("offset", s.number(), 0.0)
@@ -245,6 +245,13 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
         psec = sec.sub(role)
         points[role] = (_parse_point(psec, device, protocols.get(device_name))
                         if psec.valid else None)
+    position: PointConfig | None = None
+    if sec.has("position"):
+        psec = sec.sub("position")
+        position = (_parse_point(psec, device, protocols.get(device_name))
+                    if psec.valid else None)
+        if position is None:
+            points["position"] = None  # invalid: the loop is not built
     process = sec.opt("process", s.choice(PROCESSES), "self-regulating")
     kp = sec.opt("kp", _kp, None)
     delay = sec.opt("delay_s", s.number(non_negative=True), 0.0)
@@ -268,7 +275,7 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     return LoopConfig(name=name, device=device_name, op=op, pv=pv,
                       result_address=result_address, process=process, kp=kp,
                       delay_s=delay, window_s=window, op_range=op_range,
-                      result_unit_id=result_unit_id, origin=sec.origin)
+                      result_unit_id=result_unit_id, origin=sec.origin, position=position)
 
 
 def _kp(value: Any) -> float | None:

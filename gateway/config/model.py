@@ -141,6 +141,18 @@ class LoopConfig:
     # where the loop is listed, for messages about it: "loops.csv: line 4" for a tag-list
     # row, "" for the YAML. Neither in repr nor compared: moving a row keeps its window.
     origin: str = dataclasses.field(default="", repr=False, compare=False)
+    # the valve's position as its positioner reports it, in OP units (% of span), optional:
+    # where it is read, stiction is measured from the valve's travel. Not in repr: a loop
+    # without one keeps the signatures (and state files) it had before the key existed;
+    # core.windows.loop_signature adds it where it is set.
+    position: PointConfig | None = dataclasses.field(default=None, repr=False)
+
+    @property
+    def points(self) -> tuple[tuple[str, PointConfig], ...]:
+        """``(role, point)`` of the loop's points, in the order its device reads them: OP,
+        PV, and the position where the loop has one."""
+        both = (("op", self.op), ("pv", self.pv))
+        return both if self.position is None else (*both, ("position", self.position))
 
 
 @dataclasses.dataclass(frozen=True)

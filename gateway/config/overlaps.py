@@ -49,7 +49,7 @@ def _check_device(sections: Mapping[str, Section], loops: Sequence[LoopConfig],
     key = getattr(plugin, "POINT_ADDRESS_KEY", "address")
     spans: list[tuple[Hashable, int, int, int, str, str, bool]] = []
     for order, lp in enumerate(loops):
-        for role, p in (("op", lp.op), ("pv", lp.pv)):
+        for role, p in lp.points:
             space, first, end = span(p.address)
             spans.append((space, first, end, order, lp.name, role, p.shared))
     spans.sort(key=lambda s: (str(s[0]), s[1], s[3]))

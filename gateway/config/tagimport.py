@@ -80,7 +80,7 @@ def guessed_devices(table: TagTable) -> list[dict[str, Any]]:
     for row in table.rows:
         name = row.cells.get("device")
         if name:
-            node = any("=" in row.cells.get(c, "") for c in ("op", "pv"))
+            node = any("=" in row.cells.get(c, "") for c in ("op", "pv", "position"))
             modbus[name] = modbus.get(name, True) and not node
     return [{"name": n, "protocol": "modbus", "host": "localhost"} if m else
             {"name": n, "protocol": "opcua", "endpoint": "opc.tcp://localhost:4840"}

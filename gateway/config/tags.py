@@ -46,6 +46,13 @@ COLUMNS: dict[str, str] = {
     "op_offset": "(default 0)",
     "pv_scale": "PV = raw * pv_scale + pv_offset (default 1)",
     "pv_offset": "(default 0)",
+    "position": "the valve's position, as its positioner reports it (optional): an address "
+                "like OP's, read in OP units (% of span; use position_scale/_offset)",
+    "position_type": "the position's type, if not `type`",
+    "position_table": "the position's table, if not `table`",
+    "position_shared": "the position's shared, if not `shared`",
+    "position_scale": "position = raw * position_scale + position_offset (default 1)",
+    "position_offset": "(default 0)",
     "process": "self-regulating (default) or integrating",
     "kp": "process gain, PV units per % OP",
     "delay_s": "process dead time, s (default 0)",
@@ -63,9 +70,13 @@ _TARGETS: dict[str, tuple[str | None, str]] = {
     "op_table": ("op", "table"), "pv_table": ("pv", "table"), "op_scale": ("op", "scale"),
     "op_offset": ("op", "offset"), "pv_scale": ("pv", "scale"), "pv_offset": ("pv", "offset"),
     "op_shared": ("op", "shared"), "pv_shared": ("pv", "shared"),
+    "position": ("position", ""), "position_type": ("position", "type"),
+    "position_table": ("position", "table"), "position_scale": ("position", "scale"),
+    "position_offset": ("position", "offset"), "position_shared": ("position", "shared"),
 }
-_SHARED = {"type": ("op_type", "pv_type"), "table": ("op_table", "pv_table"),
-           "shared": ("op_shared", "pv_shared")}
+_SHARED = {"type": ("op_type", "pv_type", "position_type"),
+           "table": ("op_table", "pv_table", "position_table"),
+           "shared": ("op_shared", "pv_shared", "position_shared")}
 
 
 @dataclasses.dataclass
@@ -175,11 +186,13 @@ def loop_mapping(row: TagRow, protocol: str | None) -> dict[str, Any]:
     address_key = getattr(plugin, "POINT_ADDRESS_KEY", "address")
     loop: dict[str, Any] = {}
     cells = dict(row.cells)
-    for shared, (op_col, pv_col) in _SHARED.items():
+    for shared, (op_col, pv_col, pos_col) in _SHARED.items():
         if shared in cells:
             value = cells.pop(shared)
             cells.setdefault(op_col, value)
             cells.setdefault(pv_col, value)
+            if "position" in cells:  # a position's own keys only where it has an address
+                cells.setdefault(pos_col, value)
     for col, cell in cells.items():
         point, key = _TARGETS.get(col, (None, col))
         value = cell if col in ("name", "device") else _scalar(cell)

@@ -30,7 +30,7 @@ from stiction.diagnosis.enough import (
 )
 
 from .points import Quality
-from .windows import LoopGroup, analysis_segment
+from .windows import LoopGroup, position_segment, segment_of
 
 __all__ = ["BAD_TAIL", "DEFAULT_ANALYZE", "FULL_WINDOW", "MIN_SEGMENT", "LoopJob",
            "analyze_batch", "bad_values_reason", "batches", "warming_up"]
@@ -58,6 +58,7 @@ class LoopJob:
     delay: float
     process: str
     op_range: tuple[float, float]
+    position: NDArray[np.float32] | None = None  # the valve's position (NaN: not GOOD)
 
 
 def batches(groups: Sequence[LoopGroup], batch_size: int) -> Iterator[list[LoopJob]]:
@@ -69,11 +70,14 @@ def batches(groups: Sequence[LoopGroup], batch_size: int) -> Iterator[list[LoopJ
         for lo in range(0, len(g.configs), batch_size):
             cols = np.arange(lo, min(lo + batch_size, len(g.configs)))
             _t, op, pv, q = g.bank.series(cols)
+            pos = g.bank.positions(cols)
             batch = []
             for k, c in enumerate(cols.tolist()):
                 cfg = g.configs[c]
                 batch.append(LoopJob(int(g.rows[c]), op[k], pv[k], q[k], g.bank.size, g.ts,
-                                     cfg.kp, cfg.delay_s, cfg.process, cfg.op_range))
+                                     cfg.kp, cfg.delay_s, cfg.process, cfg.op_range,
+                                     pos[k] if pos is not None and cfg.position is not None
+                                     else None))
             yield batch
 
 
@@ -98,28 +102,33 @@ def analyze_batch(path: str, jobs: Sequence[LoopJob]
     for job in jobs:
         t0 = time.perf_counter()
         fill = float(np.count_nonzero(job.quality == Quality.GOOD)) / job.size
-        op, pv = analysis_segment(job.op, job.pv, job.quality)
+        op, pv, start = segment_of(job.op, job.pv, job.quality)
+        position = (None if job.position is None
+                    else position_segment(job.position, start, len(op)))
         reason = bad_values_reason(job.quality, len(op))
         if reason is not None:
             a = Assessment(Verdict.BAD_DATA, reason)
         elif len(op) < 2:
             a = Assessment(Verdict.BAD_DATA, "no usable samples in the window yet")
         elif len(op) >= FULL_WINDOW * job.size:
-            a = _analyze(analyze, job, op, pv)
+            a = _analyze(analyze, job, op, pv, position)
         elif len(op) < JUDGE_SAMPLES:  # too short for any verdict: not even analysed
             a = warming_up(Assessment(Verdict.WARMING_UP, ""), len(op), job.size, job.ts,
                            fill, short=too_short(len(op), waiting=True))
         else:
-            a = _while_filling(_analyze(analyze, job, op, pv), op, pv, job, fill)
+            a = _while_filling(_analyze(analyze, job, op, pv, position), op, pv, job, fill)
         out.append((job.index, a, fill, len(op), time.perf_counter() - t0))
     return out
 
 
 def _analyze(analyze: Callable[..., Assessment], job: LoopJob, op: NDArray[np.float64],
-             pv: NDArray[np.float64]) -> Assessment:
+             pv: NDArray[np.float64], position: NDArray[np.float64] | None) -> Assessment:
+    """``analyze`` on the segment; ``position`` passed only where the loop reads one (an
+    analysis function of a test need not know the keyword)."""
+    extra = {} if position is None else {"position": position}
     try:
         return analyze(op, pv, ts=job.ts, kp=job.kp, delay=job.delay, process=job.process,
-                       op_range=job.op_range)
+                       op_range=job.op_range, **extra)
     except Exception as exc:  # a bug in one window must not stop the round
         return Assessment(Verdict.BAD_DATA, f"analysis failed: {type(exc).__name__}: {exc}")
 

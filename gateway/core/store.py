@@ -22,7 +22,10 @@ from stiction import Assessment
 
 from .plant import ROLE_CODES, PlantView
 
-__all__ = ["LoopResult", "ResultStore", "StoreSnapshot", "verdict_name"]
+__all__ = ["NO_POSITION", "LoopResult", "ResultStore", "StoreSnapshot", "verdict_name"]
+
+NO_POSITION = 255
+"""``position_quality`` of a loop without a position point (else a ``Quality`` code)."""
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -47,6 +50,10 @@ class ResultStore:
         self.results: list[LoopResult | None] = [None] * n
         self.latest_op: NDArray[np.float64] = np.full(n, np.nan)
         self.latest_pv: NDArray[np.float64] = np.full(n, np.nan)
+        # the valve's latest position and its sample's quality (core.points.Quality; a loop
+        # without a position point: NO_POSITION)
+        self.latest_position: NDArray[np.float64] = np.full(n, np.nan)
+        self.position_quality = np.full(n, NO_POSITION, dtype=np.uint8)
         self.stale = np.zeros(n, dtype=bool)
         # the loop's device is down: a stale loop of a down device is ``device_down``
         self.down = np.zeros(n, dtype=bool)
@@ -124,7 +131,8 @@ class ResultStore:
         the arrays copied)."""
         return StoreSnapshot(self.loops, tuple(self.results), self.latest_op.copy(),
                              self.latest_pv.copy(), self.stale.copy(), self.down.copy(),
-                             self.plant)
+                             self.plant, self.latest_position.copy(),
+                             self.position_quality.copy())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -138,6 +146,8 @@ class StoreSnapshot:
     stale: NDArray[np.bool_]
     down: NDArray[np.bool_]
     plant: PlantView = dataclasses.field(default_factory=PlantView)
+    latest_position: NDArray[np.float64] | None = None  # None: as NaN / NO_POSITION
+    position_quality: NDArray[np.uint8] | None = None
 
     def verdict_name(self, i: int) -> str:
         return verdict_name(self.results[i], bool(self.stale[i]), bool(self.down[i]))

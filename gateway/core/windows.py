@@ -4,7 +4,10 @@ A :class:`WindowBank` holds every loop that is sampled together (one device) and
 same window length, as time-major 2-D arrays: ``op`` and ``pv`` float32 of shape
 (size, loops), ``quality`` uint8 of the same shape and one float64 timestamp per slot. An
 append writes one row (a few vectorised copies, whatever the number of loops); no Python
-object is kept per sample, so a sample costs 9 bytes per loop plus 8 bytes per row.
+object is kept per sample, so a sample costs 9 bytes per loop plus 8 bytes per row. A bank
+one of whose loops reads the valve's position holds a third signal, ``position`` (float32,
+NaN where the loop has none or its sample was not GOOD: the position's quality never makes
+the OP/PV window bad, the analysis then measures without it), 4 bytes more per loop.
 
 Timestamps are process time: Unix seconds when ``time_scale`` is 1, otherwise the gateway's
 start time plus the elapsed wall time multiplied by ``time_scale``.
@@ -28,10 +31,10 @@ from numpy.typing import NDArray
 
 from ..config.model import Config, LoopConfig
 from .points import Quality
-from .store import ResultStore
+from .store import NO_POSITION, ResultStore
 
 __all__ = ["LoopGroup", "WindowBank", "analysis_segment", "load_columns", "loop_signature",
-           "record", "result_signature"]
+           "position_segment", "record", "result_signature", "segment_of"]
 
 F32 = NDArray[np.float32]
 
@@ -39,7 +42,7 @@ F32 = NDArray[np.float32]
 class WindowBank:
     """Ring buffers of ``len(loops)`` loops sampled together, ``size`` samples each."""
 
-    def __init__(self, loops: Sequence[str], size: int) -> None:
+    def __init__(self, loops: Sequence[str], size: int, *, position: bool = False) -> None:
         if size < 2:
             raise ValueError(f"size must be at least 2, was {size}")
         self.loops = tuple(loops)
@@ -47,6 +50,8 @@ class WindowBank:
         n = len(self.loops)
         self.op: F32 = np.full((self.size, n), np.nan, dtype=np.float32)
         self.pv: F32 = np.full((self.size, n), np.nan, dtype=np.float32)
+        self.position: F32 | None = (np.full((self.size, n), np.nan, dtype=np.float32)
+                                     if position else None)
         self.quality = np.full((self.size, n), Quality.MISSING, dtype=np.uint8)
         self.t = np.full(self.size, np.nan, dtype=np.float64)
         self.head = 0  # next slot written
@@ -54,14 +59,19 @@ class WindowBank:
 
     @property
     def nbytes(self) -> int:
-        return self.op.nbytes + self.pv.nbytes + self.quality.nbytes + self.t.nbytes
+        pos = 0 if self.position is None else self.position.nbytes
+        return self.op.nbytes + self.pv.nbytes + self.quality.nbytes + self.t.nbytes + pos
 
     def append(self, t: float, op: NDArray[np.floating], pv: NDArray[np.floating],
-               quality: NDArray[np.uint8]) -> None:
-        """Store one sample of every loop (arrays of len(loops), in loop order)."""
+               quality: NDArray[np.uint8], position: NDArray[np.floating] | None = None
+               ) -> None:
+        """Store one sample of every loop (arrays of len(loops), in loop order); ``position``
+        (NaN: none) where the bank holds one (else ignored; None: NaN)."""
         i = self.head
         self.op[i] = op
         self.pv[i] = pv
+        if self.position is not None:
+            self.position[i] = np.nan if position is None else position
         self.quality[i] = quality
         self.t[i] = t
         self.head = (i + 1) % self.size
@@ -82,6 +92,14 @@ class WindowBank:
         return (self.t[order], self.op[rows].T.copy(), self.pv[rows].T.copy(),
                 self.quality[rows].T.copy())
 
+    def positions(self, columns: Sequence[int] | NDArray[np.intp]) -> F32 | None:
+        """Chronological copies of the given loop columns' positions (k, m), as
+        :meth:`series`; None when the bank holds none."""
+        if self.position is None:
+            return None
+        rows = np.ix_(self._order(), np.asarray(columns, dtype=np.intp))
+        return self.position[rows].T.copy()
+
     def latest(self) -> tuple[F32, F32, NDArray[np.uint8]]:
         """The newest sample of every loop (NaN / MISSING before the first append)."""
         i = (self.head - 1) % self.size
@@ -89,24 +107,26 @@ class WindowBank:
 
 
 def load_columns(bank: WindowBank, t: NDArray[np.float64],
-                 columns: Mapping[int, tuple[NDArray[Any], NDArray[Any], NDArray[Any]]]
-                 ) -> None:
+                 columns: Mapping[int, tuple[Any, ...]]) -> None:
     """Fill a fresh ``bank`` with chronological samples: ``t`` (rows) and per column index
-    its op/pv/quality series; series are aligned at their newest sample (shorter ones get
-    MISSING rows in front), at most ``bank.size`` newest rows are kept. Columns not given
-    stay empty (MISSING)."""
+    its op/pv/quality series and, optionally, its position series (kept where the bank
+    holds positions); series are aligned at their newest sample (shorter ones get MISSING
+    rows in front), at most ``bank.size`` newest rows are kept. Columns not given stay
+    empty (MISSING)."""
     rows = min(len(t), bank.size)
     if rows == 0:
         return
     bank.t[:] = np.nan
     bank.t[:rows] = t[len(t) - rows:]
-    for col, (op, pv, q) in columns.items():
+    for col, (op, pv, q, *pos) in columns.items():
         n = min(len(op), rows)
         if n == 0:
             continue
         bank.op[rows - n:rows, col] = op[len(op) - n:]
         bank.pv[rows - n:rows, col] = pv[len(pv) - n:]
         bank.quality[rows - n:rows, col] = q[len(q) - n:]
+        if pos and pos[0] is not None and bank.position is not None:
+            bank.position[rows - n:rows, col] = pos[0][len(pos[0]) - n:]
     bank.count = rows
     bank.head = rows % bank.size
 
@@ -114,8 +134,9 @@ def load_columns(bank: WindowBank, t: NDArray[np.float64],
 @dataclasses.dataclass(frozen=True, eq=False)
 class LoopGroup:
     """Loops of one device with the same window length, sampled together: one window
-    bank and, per column, the loop's config, the positions of its OP and PV in the
-    device's point list and its row in the result store. ``ts``: the sample time."""
+    bank and, per column, the loop's config, the positions of its OP and PV (and of the
+    valve's position, -1 where the loop has none) in the device's point list and its row in
+    the result store. ``ts``: the sample time."""
 
     device: str
     bank: WindowBank
@@ -124,6 +145,7 @@ class LoopGroup:
     pv_points: NDArray[np.intp]
     rows: NDArray[np.intp]
     ts: float
+    pos_points: NDArray[np.intp] | None = None  # None: no loop of the group has one
 
     @property
     def loops(self) -> tuple[str, ...]:
@@ -134,8 +156,9 @@ def loop_signature(config: Config, loop: LoopConfig) -> str:
     """What a loop's window depends on: equal signatures mean the stored samples are the
     same quantity at the same sample time, so the window can be kept."""
     dev = config.device(loop.device)
+    position = () if loop.position is None else (loop.position,)
     return repr((dev.protocol, dev.options, dev.poll_interval_s,
-                 config.window_samples(loop), loop.op, loop.pv))
+                 config.window_samples(loop), loop.op, loop.pv, *position))
 
 
 def result_signature(config: Config, loop: LoopConfig) -> str:
@@ -147,13 +170,22 @@ def result_signature(config: Config, loop: LoopConfig) -> str:
 def record(groups: Sequence[LoopGroup], t: float, values: NDArray[np.float64],
            quality: NDArray[np.uint8], store: ResultStore) -> NDArray[np.bool_]:
     """Append one poll of a device (engineering values and qualities, one per point) to
-    its groups, and set the store's latest OP/PV. Returns, for the groups' loops in order,
-    whether the sample was fresh (delivered by the device, good or not)."""
+    its groups, and set the store's latest OP/PV (and position with its quality). Returns,
+    for the groups' loops in order, whether the sample was fresh (delivered by the device,
+    good or not)."""
     fresh = []
     for g in groups:
         op, pv = values[g.op_points], values[g.pv_points]
         q = np.maximum(quality[g.op_points], quality[g.pv_points])
-        g.bank.append(t, op, pv, q)
+        position = None
+        if g.pos_points is not None:
+            has = g.pos_points >= 0
+            at = np.where(has, g.pos_points, 0)
+            pq = np.where(has, quality[at], NO_POSITION).astype(np.uint8)
+            position = np.where(pq == Quality.GOOD, values[at], np.nan)
+            store.latest_position[g.rows] = np.where(has, values[at], np.nan)
+            store.position_quality[g.rows] = pq
+        g.bank.append(t, op, pv, q, position)
         store.latest_op[g.rows] = op
         store.latest_pv[g.rows] = pv
         fresh.append(q < Quality.NO_COMM)
@@ -168,10 +200,26 @@ def analysis_segment(op: NDArray[np.floating], pv: NDArray[np.floating],
     Gaps (quality not GOOD) of at most ``max_fill`` samples are filled by linear
     interpolation between their neighbours; the segment starts after the last longer gap
     (and after leading samples that were never written). May be empty."""
+    o, p, _start = segment_of(op, pv, quality, max_fill)
+    return o, p
+
+
+def position_segment(position: NDArray[np.floating], start: int, length: int
+                     ) -> NDArray[np.float64]:
+    """The valve's position over the analysis segment (``start``, ``length`` from
+    :func:`segment_of`), as float64: NaN where it was not GOOD (the travel measurement fills
+    short gaps itself and leaves a gappy position to OP and PV)."""
+    return np.asarray(position[start:start + length], dtype=np.float64)
+
+
+def segment_of(op: NDArray[np.floating], pv: NDArray[np.floating],
+               quality: NDArray[np.uint8], max_fill: int = 3
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """:func:`analysis_segment` and the index of its first sample in the window."""
     good = quality == Quality.GOOD
     n = len(good)
     if not good.any():
-        return np.empty(0), np.empty(0)
+        return np.empty(0), np.empty(0), 0
     bad = ~good
     # run lengths of bad stretches, to find the last one longer than max_fill
     start = 0
@@ -192,4 +240,4 @@ def analysis_segment(op: NDArray[np.floating], pv: NDArray[np.floating],
         x = np.arange(len(g))
         o = np.interp(x, x[g], o[g])
         p = np.interp(x, x[g], p[g])
-    return o, p
+    return o, p, start

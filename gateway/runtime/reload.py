@@ -144,11 +144,12 @@ class Runtime:
 
 
 def device_points(loops: Sequence[LoopConfig]) -> list[PointSpec]:
-    """A device's point list: each loop's OP then PV, in loop order (an OP's span is its
-    loop's op_range: core.points judges it by that too)."""
+    """A device's point list: each loop's OP, PV and position (where it has one), in loop
+    order (an OP's span is its loop's op_range, and a position's, in OP units: core.points
+    judges them by that too)."""
     return [PointSpec(lp.name, role, p.address, p.scale, p.offset, p.range,
-                      lp.op_range if role == "op" else None, lp.origin)
-            for lp in loops for role, p in (("op", lp.op), ("pv", lp.pv))]
+                      lp.op_range if role != "pv" else None, lp.origin)
+            for lp in loops for role, p in lp.points]
 
 
 def plugin_source(device: DeviceConfig, points: list[PointSpec], time_scale: float) -> Source:
@@ -208,15 +209,21 @@ def _groups(config: Config, dev: DeviceConfig, loops: Sequence[LoopConfig],
             store: ResultStore) -> list[LoopGroup]:
     """A device's loops grouped by window length (one bank per length)."""
     by_size: dict[int, list[int]] = {}
+    first: list[int] = []  # index of each loop's OP in the device's point list
     for k, lp in enumerate(loops):
         by_size.setdefault(config.window_samples(lp), []).append(k)
+        first.append(first[-1] + len(loops[k - 1].points) if k else 0)
     out = []
     for size, members in by_size.items():
-        ks = np.array(members, dtype=np.intp)
+        ks = np.array([first[k] for k in members], dtype=np.intp)
         rows = np.array([store.index[loops[k].name] for k in members], dtype=np.intp)
-        out.append(LoopGroup(dev.name, WindowBank([loops[k].name for k in members], size),
-                             tuple(loops[k] for k in members), 2 * ks, 2 * ks + 1, rows,
-                             dev.poll_interval_s))
+        pos = np.array([first[k] + 2 if loops[k].position is not None else -1
+                        for k in members], dtype=np.intp)
+        has = bool((pos >= 0).any())
+        out.append(LoopGroup(dev.name, WindowBank([loops[k].name for k in members], size,
+                                                  position=has),
+                             tuple(loops[k] for k in members), ks, ks + 1, rows,
+                             dev.poll_interval_s, pos if has else None))
     return out
 
 
@@ -231,7 +238,8 @@ def _carry_windows(config: Config, group: LoopGroup,
             continue
         old_bank, c, _sig = hit
         t, op, pv, q = old_bank.series([c])
-        columns[col] = (op[0], pv[0], q[0])
+        pos = old_bank.positions([c])
+        columns[col] = (op[0], pv[0], q[0], None if pos is None else pos[0])
         if len(t) > len(t_best):
             t_best = t
     if columns:
@@ -253,6 +261,8 @@ def _carry_results(old: Runtime, new: Runtime) -> None:
             new.store.restore_result(i, res)
         new.store.latest_op[i] = old.store.latest_op[j]
         new.store.latest_pv[i] = old.store.latest_pv[j]
+        new.store.latest_position[i] = old.store.latest_position[j]
+        new.store.position_quality[i] = old.store.position_quality[j]
         new.store.stale[i] = old.store.stale[j]
         new.store.down[i] = old.store.down[j]
 

@@ -108,7 +108,8 @@ LAYOUT: tuple[Field, ...] = (
     Field("period_s", 8, "float32", "s", "oscillation period"),
     Field("jump_percent", 10, "float32", _PERCENT,
           "valve jump J = K (fs - fd), K = 1.99: how far the valve slips when it breaks "
-          "free; NaN without fs"),
+          "free (measured from the valve's travel where the loop reads its position); NaN "
+          "without fs"),
     Field("timestamp", 12, "uint32", "Unix s (UTC)", "time of the assessment"),
     Field("window_fill", 14, "float32", "0-1",
           "window fill: fraction of the loop's window holding good samples"),

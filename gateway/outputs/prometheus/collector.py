@@ -27,7 +27,7 @@ from prometheus_client.registry import Collector
 from prometheus_client.utils import floatToGoString
 
 from ...core.findings import FindingsBook, FindingsView, day_start
-from ...core.store import ResultStore, StoreSnapshot
+from ...core.store import NO_POSITION, ResultStore, StoreSnapshot
 from ...wire.results import VERDICT_CODES
 
 __all__ = ["PREFIX", "StoreCollector"]
@@ -58,6 +58,12 @@ _FAMILIES = (  # name, help; in the order they are yielded
      "ok, other; none: no finding)."),
     ("finding_timestamp_seconds", "Unix time of the local midnight that began the day of "
      "the loop's latest finding."),
+    ("band_ratio", "Dead band plus stick band measured from the valve's travel (loops with a "
+     "position), fraction of valve span."),
+    ("position_percent", "Latest valve position as its positioner reports it (loops with a "
+     "position), percent of valve span."),
+    ("position_quality", "Quality of the latest valve position sample (loops with a "
+     "position): 0 good, 1 uncertain, 2 bad (implausible), 3 no communication, 4 missing."),
 )
 # the label names of each family, in the order the client library writes them (sorted);
 # its rows hold the values in this order
@@ -118,7 +124,8 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
     """Per family of :data:`_FAMILIES`, its samples: (label values, value); the finding
     families only with ``findings`` (every loop: its latest finding, or ``none``)."""
     out: list[Rows] = [[] for _ in _FAMILIES]
-    si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role, found, when = out
+    (si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role, found, when,
+     band, pos, pos_q) = out
     roles = st.plant.roles
     latest = findings.latest if findings is not None else None
     for i, name in enumerate(st.loops):
@@ -134,6 +141,10 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
         role.extend(((name, r), 1.0 if r == its_role else 0.0) for r in ROLES)
         _add(op, name, st.latest_op[i])
         _add(pv, name, st.latest_pv[i])
+        if st.position_quality is not None and st.position_quality[i] != NO_POSITION:
+            assert st.latest_position is not None
+            _add(pos, name, st.latest_position[i])
+            _add(pos_q, name, float(st.position_quality[i]))
         res = st.results[i]
         if res is None:
             continue
@@ -146,6 +157,7 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
             _add(fd, name, size.fd / 100.0)
             _add(fs, name, None if size.fs is None else size.fs / 100.0)
             _add(jump, name, None if size.jump is None else size.jump / 100.0)
+            _add(band, name, None if size.band is None else size.band / 100.0)
     return out
 
 

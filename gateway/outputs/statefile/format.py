@@ -1,7 +1,8 @@
 """The state file: loop windows and latest assessments, so a restart loses (almost) nothing.
 
-Format (version 1): a numpy ``.npz`` archive (zip of ``.npy`` arrays, loaded with
-``allow_pickle=False``: no Python object is ever unpickled) holding
+Format (version 2; version 1 files are still read): a numpy ``.npz`` archive (zip of
+``.npy`` arrays, loaded with ``allow_pickle=False``: no Python object is ever unpickled)
+holding
 
 * ``header``: UTF-8 JSON as a uint8 array - ``format`` (``stiction-gateway-state``),
   ``version``, the wall and process time of the save, and per window bank its sample time,
@@ -11,7 +12,13 @@ Format (version 1): a numpy ``.npz`` archive (zip of ``.npy`` arrays, loaded wit
   (``clean``) and the analysis interval (how far sequence numbers may have moved on after
   an unclean exit);
 * per bank ``bK_t`` (float64, rows), ``bK_op``/``bK_pv`` (float32, rows × loops) and
-  ``bK_q`` (uint8 quality), the stored samples oldest first.
+  ``bK_q`` (uint8 quality), the stored samples oldest first; and, new in version 2, where a
+  loop of the bank reads the valve's position (the bank's ``"position": true``),
+  ``bK_pos`` (float32, rows × loops; NaN where a loop has none or the sample was not GOOD).
+
+Version 1 (before the position existed) is version 2 without ``bK_pos`` and without the
+bank's ``position`` key: such a file restores as it did, the positions of its windows empty
+(NaN), so a loop given a ``position`` since starts measuring the travel as samples come.
 
 Writes are atomic: a temporary file in the same directory, ``fsync``, ``rename`` over the
 old file, ``fsync`` of the directory. A crash (even SIGKILL) leaves either the previous file
@@ -55,7 +62,8 @@ __all__ = ["FORMAT", "VERSION", "StateError", "read_state", "set_aside", "snapsh
            "state_bounds", "write_state"]
 
 FORMAT = "stiction-gateway-state"
-VERSION = 1
+VERSION = 2
+READ_VERSIONS = (1, 2)  # what read_state accepts: version 1 has no positions
 
 
 class StateError(Exception):
@@ -86,6 +94,9 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
         arrays[f"b{k}_op"] = np.ascontiguousarray(op.T)
         arrays[f"b{k}_pv"] = np.ascontiguousarray(pv.T)
         arrays[f"b{k}_q"] = np.ascontiguousarray(q.T)
+        pos = b.bank.positions(np.arange(len(b.configs)))
+        if pos is not None:
+            arrays[f"b{k}_pos"] = np.ascontiguousarray(pos.T)
         loops = []
         for cfg in b.configs:
             entry: dict[str, Any] = {"name": cfg.name,
@@ -100,7 +111,8 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                                    "t": res.t, "window_fill": res.window_fill,
                                    "samples": res.samples}
             loops.append(entry)
-        header["banks"].append({"ts": b.ts, "size": b.bank.size, "loops": loops})
+        header["banks"].append({"ts": b.ts, "size": b.bank.size, "loops": loops,
+                                **({} if pos is None else {"position": True})})
     return header, arrays
 
 
@@ -192,9 +204,10 @@ def read_state(path: str | os.PathLike[str], *, max_bytes: int = DEFAULT_MAX_BYT
             raise StateError("corrupt", f"unreadable header: {exc}") from None
         if not isinstance(header, dict) or header.get("format") != FORMAT:
             raise StateError("foreign", "not a stiction-gateway state file")
-        if header.get("version") != VERSION:
+        if header.get("version") not in READ_VERSIONS:
             raise StateError("foreign", f"state format version {header.get('version')!r}, "
-                             f"this gateway reads version {VERSION}")
+                             f"this gateway reads versions "
+                             f"{', '.join(map(str, READ_VERSIONS))}")
         try:
             check_header(header, max_loops)
             arrays = _bank_arrays(archive, members, header["banks"])
@@ -208,7 +221,10 @@ def _bank_arrays(archive: zipfile.ZipFile, members: Mapping[str, zipfile.ZipInfo
     arrays: dict[str, NDArray[Any]] = {}
     for k, b in enumerate(banks):
         n = len(b["loops"])
-        for name, dtype in _DTYPES.items():
+        names = dict(_DTYPES)
+        if b.get("position") is True:  # version 2: the bank holds positions
+            names["pos"] = np.dtype("<f4")
+        for name, dtype in names.items():
             key = f"b{k}_{name}"
             arr = _array(archive, members.get(f"{key}.npy"), dtype, key)
             rows = len(arrays[f"b{k}_t"]) if name != "t" else len(arr)

@@ -104,10 +104,23 @@ def _start_empty(banks: Sequence[LoopGroup], store: ResultStore) -> None:
         ref.bank.count = ref.bank.head = 0
         ref.bank.t[:] = np.nan
         ref.bank.quality[:] = Quality.MISSING
+        if ref.bank.position is not None:
+            ref.bank.position[:] = np.nan
     store.seq_floor[:] = 0
     for i in range(len(store.results)):
         if store.results[i] is not None:
             store.clear_result(i)
+
+
+def _position(arrays: dict[str, NDArray[Any]], k: int, c: int) -> NDArray[Any] | None:
+    """A restored column's positions (version 2, a bank that holds them): a value beyond
+    :data:`MAX_MAGNITUDE` is no sample (NaN), as polling would not have stored it."""
+    pos = arrays.get(f"b{k}_pos")
+    if pos is None:
+        return None
+    col = pos[:, c]
+    with np.errstate(invalid="ignore"):
+        return np.where(np.abs(col) <= MAX_MAGNITUDE, col, np.float32(np.nan))
 
 
 def _plausible(op: NDArray[Any], pv: NDArray[Any], q: NDArray[Any]
@@ -143,7 +156,7 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
         if i is not None and isinstance(seq, int) and seq > 0:
             store.seq_floor[i] = seq + bump
     for ref in banks:
-        columns: dict[int, tuple[NDArray[Any], NDArray[Any], NDArray[Any]]] = {}
+        columns: dict[int, tuple[NDArray[Any] | None, ...]] = {}
         t_best: NDArray[np.float64] = np.empty(0)
         last_t = None
         for col, cfg in enumerate(ref.configs):
@@ -153,8 +166,8 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
                 continue
             k, c, entry = hit
             t = arrays[f"b{k}_t"]
-            columns[col] = _plausible(arrays[f"b{k}_op"][:, c], arrays[f"b{k}_pv"][:, c],
-                                      arrays[f"b{k}_q"][:, c])
+            columns[col] = (*_plausible(arrays[f"b{k}_op"][:, c], arrays[f"b{k}_pv"][:, c],
+                                        arrays[f"b{k}_q"][:, c]), _position(arrays, k, c))
             if len(t) > len(t_best):
                 t_best = t
             if len(t):

@@ -163,6 +163,11 @@ def check_header(header: Any, max_loops: int) -> None:
         b = _mapping(bank, f"banks[{k}]")
         _number(b.get("ts"), f"banks[{k}].ts", 1e-9, 1e9)
         _integer(b.get("size"), f"banks[{k}].size", 2, MAX_WINDOW)
+        if "position" in b and not isinstance(b["position"], bool):
+            raise ValueError(f"banks[{k}].position: {type(b['position']).__name__} where "
+                             f"true/false belongs")
+        if "position" in b and h.get("version") == 1:
+            raise ValueError(f"banks[{k}].position: not in a version 1 file")
         entries = _list(b.get("loops"), f"banks[{k}].loops", max_loops)
         loops += len(entries)
         if loops > max_loops:
