@@ -90,6 +90,19 @@ class SimConfig:
     plants: tuple[SimPlant, ...] = ()
     step_test: StepTest | None = None  # one loop held in manual, playing a step test
 
+    @property
+    def position_base(self) -> int:
+        """The first register of the valve positions: after every loop's and plant loop's
+        block (so no loop's OP/PV register moves); single loop ``k`` (config order) has its
+        position, float32 % of valve span, at ``position_base + 2 k``."""
+        ends = [lp.address + REGISTERS_PER_LOOP for lp in self.loops]
+        ends += [p.address + REGISTERS_PER_LOOP * len(p.loops) for p in self.plants]
+        return max(ends, default=0)
+
+    def position_address(self, k: int) -> int:
+        """The position register of single loop ``k`` (config order)."""
+        return self.position_base + 2 * k
+
     def loop_names(self) -> list[str]:
         """Every loop served, in register order: the single loops, then the plants'."""
         return [lp.name for lp in self.loops] + [p.name(lp) for p in self.plants

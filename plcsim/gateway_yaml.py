@@ -49,8 +49,12 @@ def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None 
     pki/trusted/) to be created with ``stiction-gateway opcua-cert``."""
     loops: list[dict[str, Any]] = []
     unit, next_result = result_unit_id, 0
-    for lp in [*cfg.loops, *_plant_loops(cfg)]:
+    for k, lp in enumerate([*cfg.loops, *_plant_loops(cfg)]):
         sc = lp.scenario
+        # the valve's position, where the simulated PLC has it (single loops)
+        position = ({} if k >= len(cfg.loops) else {"position": (
+            {"address": cfg.position_address(k), "type": "float32"}
+            if cfg.protocol == "modbus" else {"node": f"ns=2;s={lp.name}.POS"})})
         if lp.result_address is not None:  # on the current unit id
             result_address = lp.result_address
         else:
@@ -64,6 +68,7 @@ def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None 
                    else {"node": f"ns=2;s={lp.name}.OP"}),
             "pv": ({"address": lp.address + 2, "type": "float32"} if cfg.protocol == "modbus"
                    else {"node": f"ns=2;s={lp.name}.PV"}),
+            **position,
             "process": "integrating" if sc.integrating else "self-regulating",
             "kp": sc.kp, "delay_s": sc.theta,
             "window_s": lp.window_s if lp.window_s is not None else 3600.0,

@@ -1,4 +1,5 @@
-"""The simulated PLC's OPC UA face: an asyncua server serving each loop's OP and PV.
+"""The simulated PLC's OPC UA face: an asyncua server serving each loop's OP and PV (and
+its valve's position, ``L.POS``).
 
 Each loop ``L`` is a folder object ``L`` under Objects with two Double variables,
 ``ns=2;s=L.OP`` (% of valve span) and ``ns=2;s=L.PV`` (process units), in the namespace
@@ -125,8 +126,8 @@ class OpcUaPlcServer:
             application_uri = application_uri_of(load_certificate_file(security.certificate))
         self.application_uri = application_uri or "urn:stiction-gateway:plc-sim:server"
         self._server: Server | None = None
-        self._nodes: list[tuple[ua.NodeId, ua.NodeId]] = []
-        self._last: tuple[np.ndarray, np.ndarray] | None = None
+        self._nodes: list[tuple[ua.NodeId, ...]] = []
+        self._last: tuple[np.ndarray, ...] | None = None
         self.namespace_index = 2
 
     @property
@@ -184,34 +185,39 @@ class OpcUaPlcServer:
         for loop in self.loops:
             folder = await objects.add_folder(ua.NodeId.from_string(f"ns={idx};s={loop}"), loop)
             pair = []
-            for role in ("OP", "PV"):
+            for role in ("OP", "PV", "POS"):
                 nid = ua.NodeId.from_string(f"ns={idx};s={loop}.{role}")
                 await folder.add_variable(nid, f"{loop}.{role}",
                                           ua.Variant(0.0, ua.VariantType.Double))
                 await server.write_attribute_value(nid, initial)
                 pair.append(nid)
-            self._nodes.append((pair[0], pair[1]))
+            self._nodes.append(tuple(pair))
         await server.start()
         self._server = server
         if self._last is not None:
             await self.update(*self._last)
         _log.info("OPC UA plc-sim serving %d loops on %s", len(self.loops), self.endpoint)
 
-    async def update(self, op: ArrayLike, pv: ArrayLike) -> None:
-        """Publish one sample of every loop (arrays in the order of ``loops``)."""
+    async def update(self, op: ArrayLike, pv: ArrayLike, position: ArrayLike | None = None
+                     ) -> None:
+        """Publish one sample of every loop (arrays in the order of ``loops``): OP, PV and
+        the valve's position (``L.POS``; None or NaN: bad, no communication)."""
         op_a = np.asarray(op, dtype=np.float64).reshape(-1)
         pv_a = np.asarray(pv, dtype=np.float64).reshape(-1)
-        if op_a.shape != (len(self.loops),) or pv_a.shape != (len(self.loops),):
-            raise ValueError(f"op and pv must have {len(self.loops)} values, had "
-                             f"{op_a.size} and {pv_a.size}")
-        self._last = (op_a.copy(), pv_a.copy())
+        pos_a = (np.full(op_a.shape, np.nan) if position is None
+                 else np.asarray(position, dtype=np.float64).reshape(-1))
+        if op_a.shape != (len(self.loops),) or pv_a.shape != (len(self.loops),) \
+                or pos_a.shape != op_a.shape:
+            raise ValueError(f"op, pv and position must have {len(self.loops)} values, had "
+                             f"{op_a.size}, {pv_a.size} and {pos_a.size}")
+        self._last = (op_a.copy(), pv_a.copy(), pos_a.copy())
         server = self._server
         if server is None:
             return
         now = datetime.datetime.now(datetime.UTC)
-        for (op_id, pv_id), x_op, x_pv in zip(self._nodes, op_a, pv_a, strict=True):
-            await server.write_attribute_value(op_id, _datavalue(float(x_op), now))
-            await server.write_attribute_value(pv_id, _datavalue(float(x_pv), now))
+        for nodes, *values in zip(self._nodes, op_a, pv_a, pos_a, strict=True):
+            for nid, x in zip(nodes, values, strict=True):
+                await server.write_attribute_value(nid, _datavalue(float(x), now))
 
     async def stop(self) -> None:
         server, self._server = self._server, None

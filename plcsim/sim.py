@@ -3,11 +3,14 @@ closed-loop simulator, sample by sample, in real time or ``time_scale`` times fa
 
 The config is :mod:`plcsim.config` (docs/plc-sim.md). Each loop takes 4 registers from its
 ``address``: OP float32 (% of valve span) then PV float32 (process units), served alike as
-holding and input registers (read-only). Loops are grouped by valve class into
-:class:`stiction.models.simulate.LoopBank` s whose parameters are arrays, so a step of 10,000 loops
-costs a few dozen numpy operations. Each loop gets its scenario's setpoint step (``sp_step``
-at ``sp_step_time``) so sticky loops start their limit cycle. With ``step_test`` one loop
-is held in manual and steps through a step test (:mod:`plcsim.steptest`).
+holding and input registers (read-only). After every loop's block, each single loop's valve
+position (float32, % of valve span: the simulated valve's own) at
+``SimConfig.position_address(k)``, as a smart positioner reports it. Loops are grouped by
+valve class into :class:`stiction.models.simulate.LoopBank` s whose parameters are
+arrays, so a step of 10,000 loops costs a few dozen numpy operations. Each loop gets its
+scenario's setpoint step (``sp_step`` at ``sp_step_time``) so sticky loops start their limit
+cycle. With ``step_test`` one loop is held in manual and steps through a step test
+(:mod:`plcsim.steptest`).
 """
 
 from __future__ import annotations
@@ -75,9 +78,11 @@ class PlcSim:
         n = self.singles + len(plant_addr)
         addr = np.array([lp.address for lp in cfg.loops] + plant_addr, dtype=np.intp)
         size = int(addr.max()) + REGISTERS_PER_LOOP if n else REGISTERS_PER_LOOP
-        self.image = np.zeros(size, dtype=np.uint16)
+        base = cfg.position_base
+        self.image = np.zeros(max(size, base + 2 * self.singles), dtype=np.uint16)
         self._op_idx = addr[:, None] + np.arange(2)
         self._pv_idx = addr[:, None] + 2 + np.arange(2)
+        self._pos_idx = base + 2 * np.arange(self.singles)[:, None] + np.arange(2)
         self.banks = build_banks(cfg)
         self.plants = PlantFeed(cfg.plants, cfg.ts, cfg.seed)
         # the loop under a step test: (its bank, its place there, the player)
@@ -90,6 +95,7 @@ class PlcSim:
                     self.step_test = (k, place, StepTestPlayer(cfg.step_test))
         self.op = np.zeros(n)
         self.pv = np.zeros(n)
+        self.position = np.full(n, np.nan)  # the valves' (plant loops: none)
         self.steps = 0
         host, port = cfg.listen
         self.server = RegisterServer({"holding": self.image, "input": self.image},
@@ -122,6 +128,7 @@ class PlcSim:
             out = b.bank.step(sp, manual=manual)
             self.op[b.rows] = out.op
             self.pv[b.rows] = out.pv
+            self.position[b.rows] = out.vp
             if test is not None and manual is not None:
                 i = test[1]
                 test[2].record(t, float(out.op[i]), float(out.pv[i]), float(out.vp[i]))
@@ -129,6 +136,9 @@ class PlcSim:
         wo = self.cfg.word_order
         self.image[self._op_idx] = encode_values(self.op, "float32", wo)
         self.image[self._pv_idx] = encode_values(self.pv, "float32", wo)
+        if self.singles:
+            self.image[self._pos_idx] = encode_values(self.position[:self.singles], "float32",
+                                                      wo)
         self.steps += 1
 
     async def run(self) -> None:
@@ -144,13 +154,13 @@ class PlcSim:
             for _ in range(min(behind, 100)):
                 self.step()
             if self.opcua is not None:
-                await self.opcua.update(self.op, self.pv)
+                await self.opcua.update(self.op, self.pv, self.position)
             due += behind * period
 
     async def __aenter__(self) -> PlcSim:
         if self.opcua is not None:
             await self.opcua.start()
-            await self.opcua.update(self.op, self.pv)
+            await self.opcua.update(self.op, self.pv, self.position)
         else:
             await self.server.start()
         self._task = asyncio.create_task(self.run(), name="plc-sim")

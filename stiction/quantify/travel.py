@@ -16,8 +16,10 @@ the valve (a move whose direction differs from the one before it):
   Pottmann & Qin 2007, He & Wang 2014 eq 7): how far the valve jumped when it broke free:
   its travel over the samples in which it moved faster than OP, from its level before (the
   mean of up to six samples since it last moved) to its level after (a line through up to
-  six samples up to its next move), less half a sample's OP travel (the part of OP beyond
-  the threshold it followed).
+  six samples up to its next move), less K times half a sample's OP travel (the part of OP
+  beyond the threshold it followed, times He's overshoot factor, as
+  :mod:`stiction.quantify.hewang` corrects its J). Where OP moves more in one sample than a
+  tenth of the slip, the slip is known only to that sample's travel.
 
 In He's terms (He & Wang 2014 eqs 6-8): just after a jump the net force OP - position is
 ``fs - J`` and the next jump the other way comes at ``-fs``, so ``band = 2 fs - J``; hence
@@ -178,7 +180,7 @@ def _jump(raw: FloatArray, filt: FloatArray, op: FloatArray, *, i: int, d: int, 
     return d * (_level_after(raw, j, end) - before)
 
 
-def _reversals(op: FloatArray, raw: FloatArray, filt: FloatArray, h: float
+def _reversals(op: FloatArray, raw: FloatArray, filt: FloatArray, h: float, k: float
                ) -> tuple[FloatArray, FloatArray, int]:
     """Per valve reversal, the band (OP travel between the last move one way and the first
     move back) and the slip (the jump of that first move back), OP units; and the sample
@@ -203,7 +205,7 @@ def _reversals(op: FloatArray, raw: FloatArray, filt: FloatArray, h: float
         end = at[m + 1] if m + 1 < len(at) else raw.size
         bands.append(d * (u_break - u_last) - abs(rate) / 2.0)
         slips.append(_jump(raw, filt, op, i=brk, d=d, h=h, before=rest, end=end)
-                     - abs(rate) / 2.0)
+                     - k * abs(rate) / 2.0)
     return np.asarray(bands), np.asarray(slips), at[-1] + 1 if at else 0
 
 
@@ -243,7 +245,7 @@ def measure_travel(op: ArrayLike, position: ArrayLike, *, k: float = 1.0,
     sd_u, sd_x = noise_sd(op_f), noise_sd(pos_f)
     scale = max(float(np.ptp(op_f)), float(np.ptp(pos_f)), 1e-12)
     h = max(MOVE_SDS * sd_x, 1e-6 * scale)
-    bands, slips, still_from = _reversals(op_f, pos_f, running_median(pos_f), h)
+    bands, slips, still_from = _reversals(op_f, pos_f, running_median(pos_f), h, k)
     return _judge(op_f, bands, slips, still_from=still_from, h=h, sd_u=sd_u, k=k, span=span)
 
 

@@ -6,7 +6,11 @@ full, the level loop's 2400 s too; on a window still holding the simulation's st
 learned decision leaves the level valve `undetermined`, as the demo shows in its first
 minute).
 Checked: every loop's verdict, fd within 10 % for the sticky loops, and that the Modbus
-registers and the metrics say the same thing."""
+registers and the metrics say the same thing. The simulated PLC serves each valve's position
+and the written gateway config reads it (issue 30): the sticky loops are decided from the
+valve's travel, their band (metrics) and slip (the jump register) within 10 % of the
+simulated valve's (He's model, fs 0.30, fd 0.27, K 1.99: band 2 fs - J = 0.540, slip
+J = K (fs - fd) = 0.0597)."""
 
 from __future__ import annotations
 
@@ -25,6 +29,7 @@ from gateway.wire.codec import decode_registers
 from gateway.wire.results import VERDICT_CODES
 from plcsim import PlcSim, parse_sim_config
 from plcsim.demo import DEMO_LOOPS, demo_configs
+from stiction.diagnosis.travel import MEASURED
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.timing]
 
@@ -37,7 +42,8 @@ EXPECTED = {
     # a healthy loop with measurement noise: no oscillation (the analysis may also call
     # the noise "too short to see", bad_data; warming_up while its window fills) - never
     # stiction
-    "TIC301": {"not_oscillating", "warming_up", "bad_data"},
+    "TIC301": {"not_oscillating", "warming_up", "bad_data", "no_stiction"},  # its valve
+    # follows OP (read from its position) where OP/PV cannot tell
     "FIC401": {"no_stiction", "undetermined", "not_oscillating", "warming_up"},
     "PIC501": {"no_stiction", "undetermined"},
 }
@@ -124,6 +130,11 @@ def test_plc_sim_to_gateway_to_modbus_and_metrics() -> None:
         if name in TRUE_FD:
             assert fd / 100.0 == pytest.approx(TRUE_FD[name], rel=0.10), name
             assert fs / 100.0 == pytest.approx(0.30, rel=0.10), name
+            assert MEASURED in reasons[name], reasons[name]
+            assert jump / 100.0 == pytest.approx(1.99 * 0.03, rel=0.10), name
+            assert metric("stiction_loop_band_ratio", loop=name) == pytest.approx(
+                0.60 - 1.99 * 0.03, rel=0.10), name
+            assert metric("stiction_loop_position_quality", loop=name) == 0.0
         else:
             assert math.isnan(fd)
     assert metric("stiction_device_up", device="plc-sim") == 1.0
