@@ -119,7 +119,8 @@ def _probe(args: argparse.Namespace) -> int:
             print(f"stiction-gateway: {err}", file=sys.stderr)
     good = sum(1 for d in results for r in d.rows if r.quality == Quality.GOOD)
     odd = sum(1 for d in results for r in d.rows if r.shown_quality == "IMPLAUSIBLE")
-    print(f"{good} of {2 * len(select_loops(config, args.loops))} point(s) good"
+    points = sum(len(lp.points) for lp in select_loops(config, args.loops))
+    print(f"{good} of {points} point(s) good"
           + (f", {odd} implausible (see status)" if odd else ""), file=sys.stderr)
     return 0 if all(d.ok for d in results) else 1
 

@@ -43,9 +43,15 @@ def slow_sim(protocol: str = "modbus") -> Any:
     return sim_config(LOOPS, ts=1.0, time_scale=0.001, protocol=protocol)
 
 
-def write_config(tmp: Path, sim: Any, port: int, edit: Any = None) -> Path:
+def write_config(tmp: Path, sim: Any, port: int, edit: Any = None, *,
+                 positions: bool = False) -> Path:
+    """The plc-sim's gateway config; without ``positions`` its loops' position points
+    are left out (the tests of OP and PV's decoding)."""
     raw = gateway_config(sim, port=port, metrics_listen="127.0.0.1:0",
                          result_listen="127.0.0.1:0")
+    if not positions:
+        for lp in raw["loops"]:
+            lp.pop("position", None)
     if edit is not None:
         edit(raw)
     path = tmp / "gw.yaml"
@@ -80,11 +86,13 @@ def test_probe_prints_what_the_plc_holds_decoded_and_scaled(tmp_path: Path) -> N
 
     async def go() -> None:
         async with PlcSim(sim) as plc:
-            path = write_config(tmp_path, sim, plc.port, edit)
+            path = write_config(tmp_path, sim, plc.port, edit, positions=True)
             results = await probe(load_config(path))
             (dev,) = results
             assert dev.device == "plc-sim" and dev.error is None and not dev.ok
             rows = {(r.loop, r.role): r for r in dev.rows}
+            for i, name in enumerate(["FIC101", "LIC201", "TIC301"]):  # the valves' own
+                assert rows[name, "position"].value == np.float32(plc.position[i])
             for i, name in enumerate(["FIC101", "LIC201", "TIC301"]):
                 op, pv = np.float32(plc.op[i]), np.float32(plc.pv[i])  # float32 registers
                 assert rows[name, "op"].raw == op and rows[name, "op"].value == op
@@ -99,13 +107,14 @@ def test_probe_prints_what_the_plc_holds_decoded_and_scaled(tmp_path: Path) -> N
             code, out, err = await cli("probe", "--config", str(path), "FIC101", "LIC201")
             assert code == 0, err
             got = table(out)
-            assert set(got) == {(n, p) for n in ("FIC101", "LIC201") for p in ("op", "pv")}
+            assert set(got) == {(n, p) for n in ("FIC101", "LIC201")
+                                for p in ("op", "pv", "position")}
             assert float(got["FIC101", "op"][5]) == pytest.approx(plc.op[0], rel=1e-6)
             assert float(got["FIC101", "pv"][5]) == pytest.approx(plc.pv[0], rel=1e-6)
             assert float(got["LIC201", "pv"][5]) == pytest.approx(plc.pv[1] * 0.1 - 50,
                                                                   rel=1e-6)
             assert got["LIC201", "pv"][6] == "GOOD"
-            assert err.splitlines()[-1] == "4 of 4 point(s) good"
+            assert err.splitlines()[-1] == "6 of 6 point(s) good"
             code, _, err = await cli("probe", "--config", str(path))
             assert code == 1, err  # TIC301's PV is BAD
             code, _, err = await cli("probe", "--config", str(path), "FIC999")
@@ -191,13 +200,13 @@ def test_probe_and_browse_over_opcua(tmp_path: Path) -> None:
             found = await browse(OpcUaDeviceConfig("", endpoint, 1.0, 1.0))
             assert [(v.node, v.data_type, v.path) for v in found] == [
                 (f"ns=2;s={n}.{p}", "Double", f"{n}/{n}.{p}")
-                for n in ("FIC101", "LIC201", "TIC301") for p in ("OP", "PV")]
+                for n in ("FIC101", "LIC201", "TIC301") for p in ("OP", "PV", "POS")]
             assert float(found[0].value) == pytest.approx(plc.op[0], rel=1e-6)
 
             code, out, err = await cli("browse", endpoint, "ns=2;s=LIC201")
             assert code == 0, err
             assert [line.split()[0] for line in out.splitlines()] == [
-                "node", "ns=2;s=LIC201.OP", "ns=2;s=LIC201.PV"]
+                "node", "ns=2;s=LIC201.OP", "ns=2;s=LIC201.PV", "ns=2;s=LIC201.POS"]
             code, out, err = await cli("browse", "plc-sim", "--config", str(path))
             assert code == 0, err
             assert "ns=2;s=TIC301.PV" in out

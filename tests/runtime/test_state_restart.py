@@ -102,7 +102,7 @@ def test_gateway_starts_and_polls_with_a_corrupt_state_file(tmp_path: Path) -> N
     assert asyncio.run(asyncio.wait_for(go(), 50)) >= 5
     assert len(list(tmp_path.glob("gw.state.corrupt-*"))) == 1
     header, _ = read_state(state)  # a fresh, good file was written at exit
-    assert header["version"] == 1
+    assert header["version"] == 2
 
 
 def test_a_write_cancelled_at_stop_finishes_before_the_final_one(
