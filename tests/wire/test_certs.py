@@ -99,6 +99,6 @@ def test_plcsim_server_argument_checks(tmp_path: Path) -> None:
 
 def test_plcsim_update_checks_shapes_before_start() -> None:
     server = OpcUaPlcServer(["A", "B"])
-    with pytest.raises(ValueError, match="op and pv must have 2 values, had 3 and 2"):
+    with pytest.raises(ValueError, match="op, pv and position must have 2 values, had 3, 2 and 3"):
         asyncio.run(server.update(np.zeros(3), np.zeros(2)))
     asyncio.run(server.update([1.0, 2.0], [3.0, 4.0]))  # kept, served once started

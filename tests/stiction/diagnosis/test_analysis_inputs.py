@@ -271,4 +271,4 @@ def test_to_dict_has_exactly_the_fields(loop: tuple[np.ndarray, np.ndarray]) -> 
     d = analyze(op, pv, ts=1.0, kp=1.0).to_dict()
     assert set(d) == {"verdict", "reason", "oscillating", "period_s", "stiction_index", "fd",
                       "fs", "jump", "fd_op", "fs_op", "cycles_used", "multi_jump", "warnings",
-                      "confidence", "evidence"}
+                      "confidence", "evidence", "band", "band_op"}
