@@ -84,6 +84,9 @@ class PlantSettings:
     # samples per signal the plant analysis sees: longer windows are averaged down (bounds
     # its memory and time; the per-loop analysis always sees the whole window)
     max_samples: int = 1024
+    # rounds a changed plant view (a group appearing or ending, a source, a loop's role)
+    # must hold before it is published (gateway.core.planthold); 1: at once
+    hold_rounds: int = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,6 +134,9 @@ class LoopConfig:
     # where the loop is listed, for messages about it: "loops.csv: line 4" for a tag-list
     # row, "" for the YAML. Neither in repr nor compared: moving a row keeps its window.
     origin: str = dataclasses.field(default="", repr=False, compare=False)
+    # the plant unit (area) it belongs to: the plant view groups loops of one unit only
+    # ("": no unit). Not in repr: it changes neither the window nor the assessment.
+    unit: str = dataclasses.field(default="", repr=False)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -8,11 +8,18 @@ together by :func:`stiction.plant.analyze_plant` (docs/architecture.md):
    :class:`PlantJob`: samples that are not GOOD as NaN (gaps), aligned at the newest sample
    (devices polled at one interval are read within one interval of each other), averaged
    down to at most ``max_samples`` samples.
-2. :func:`analyze_plant_job` is the worker's entry (picklable in, picklable out).
-3. :class:`PlantTracker` numbers the groups of all jobs for the outputs: a group keeps its
-   number from round to round while it shares loops with the one before (new groups take the
-   lowest free number, so numbers stay small: the Modbus register holds 1-255), and says
-   when a group appears, changes its source or ends (one log line each).
+   Each loop's ``unit`` goes with it: groups form within a unit.
+2. :func:`analyze_plant_job` is the worker's entry (picklable in, picklable out). The job
+   carries the plant view in force for its time base, so a source named before stays while
+   its evidence stands (:mod:`stiction.plant.decide`).
+3. :class:`PlantTracker` holds each time base's view in force: a new view whose story
+   differs (a group appears or ends, a group's source or a loop's role changes) is put in
+   force only once it has held for ``hold_rounds`` rounds in a row
+   (:mod:`.planthold`); then it numbers the groups of all jobs for the outputs: a group
+   keeps its number from round to round while it shares loops with the one before (new
+   groups take the lowest free number, so numbers stay small: the Modbus register holds
+   1-255), says when a group appears, changes its source or ends (one log line each) and
+   counts the changes published and the rounds a change was held back.
 What the store holds, :class:`.plantview.PlantView` (the groups and, per loop, its group
 number and role), is a module of its own: the store imports it, this module imports the
 windows, and the windows the store, so nothing imports in a circle.
@@ -30,6 +37,7 @@ from numpy.typing import NDArray
 
 from stiction import Assessment
 
+from .planthold import Hold
 from .plantview import MAX_GROUP_NUMBER, PlantGroup, PlantView
 from .points import Quality
 from .windows import LoopGroup
@@ -37,9 +45,13 @@ from .windows import LoopGroup
 if TYPE_CHECKING:  # the analysis only in the worker (it brings in scipy.signal, ~0.5 s)
     from stiction.plant import PlantAssessment
 
-__all__ = ["CHUNK", "PlantJob", "PlantTracker", "analyze_plant_job", "plant_jobs"]
+__all__ = ["CHANGES", "CHUNK", "PlantJob", "PlantTracker", "analyze_plant_job", "plant_jobs"]
 
 CHUNK = 512  # loops copied out of a bank at once (bounds the copies' memory)
+CHANGES = ("group_appeared", "group_ended", "source", "role", "held")
+"""What :attr:`PlantTracker.changes` counts: published changes of each kind (a loop's role
+counts when it becomes or stops being a source or a follower), and ``held``: rounds a
+changed story was held back (:mod:`.planthold`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,6 +66,9 @@ class PlantJob:
     ts: float
     assessments: Mapping[str, Assessment]
     processes: Mapping[str, str]
+    units: Mapping[str, str] = dataclasses.field(default_factory=dict)  # loop -> its unit
+    key: tuple[float, int] = (0.0, 0)  # the time base: poll interval, window length
+    previous: PlantAssessment | None = None  # the view in force for this time base
 
 
 def _averaged(x: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
@@ -67,9 +82,12 @@ def _averaged(x: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
 
 
 def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment], *,
-               max_samples: int) -> list[PlantJob]:
+               max_samples: int,
+               previous: Mapping[tuple[float, int], PlantAssessment] | None = None
+               ) -> list[PlantJob]:
     """One job per time base (poll interval, window length) with at least two loops
-    assessed (``assessments``: store row -> this round's assessment), in that order."""
+    assessed (``assessments``: store row -> this round's assessment), in that order;
+    ``previous``: the view in force per time base."""
     by_base: dict[tuple[float, int], list[LoopGroup]] = {}
     for g in groups:
         if g.bank.count > 0 and any(int(r) in assessments for r in g.rows):
@@ -84,6 +102,7 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
         ops: list[NDArray[np.float32]] = []
         pvs: list[NDArray[np.float32]] = []
         processes: dict[str, str] = {}
+        units: dict[str, str] = {}
         for g in members:
             cols = [c for c in range(len(g.configs)) if int(g.rows[c]) in assessments]
             for lo in range(0, len(cols), CHUNK):
@@ -105,6 +124,8 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
                     rows.append(int(g.rows[c]))
                     names.append(cfg.name)
                     processes[cfg.name] = cfg.process
+                    if cfg.unit:
+                        units[cfg.name] = cfg.unit
         if len(rows) < 2:
             continue
         jobs.append(PlantJob(
@@ -112,7 +133,7 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
             np.concatenate(ops) if ops else np.zeros((0, width), np.float32),
             np.concatenate(pvs) if pvs else np.zeros((0, width), np.float32),
             ts * factor, {nm: assessments[r] for r, nm in zip(rows, names, strict=True)},
-            processes))
+            processes, units, (ts, length), (previous or {}).get((ts, length))))
     return jobs
 
 
@@ -122,27 +143,43 @@ def analyze_plant_job(job: PlantJob) -> PlantAssessment:
 
     loops = {name: (job.op[k], job.pv[k]) for k, name in enumerate(job.names)}
     return analyze_plant(loops, ts=job.ts, assessments=job.assessments,
-                         processes=job.processes)
+                         processes=job.processes, units=job.units, previous=job.previous)
 
 
 class PlantTracker:
-    """Numbers the groups of successive rounds and tells what changed (see the module)."""
+    """Holds each time base's view in force, numbers the groups of successive rounds, tells
+    and counts what changed (see the module)."""
 
-    def __init__(self) -> None:
+    def __init__(self, hold_rounds: int = 1) -> None:
         self.groups: dict[int, PlantGroup] = {}
+        self.hold = Hold(hold_rounds)
+        self.changes: dict[str, int] = dict.fromkeys(CHANGES, 0)
+        self._roles: Mapping[str, tuple[int, str]] = {}
+
+    @property
+    def in_force(self) -> dict[tuple[float, int], PlantAssessment]:
+        """The plant assessment in force per time base (the jobs' ``previous``)."""
+        return self.hold.in_force  # type: ignore[return-value]
+
+    def settle(self, found: Sequence[tuple[tuple[float, int], PlantAssessment]]
+               ) -> list[PlantAssessment]:
+        """This round's assessment per time base in, the ones in force out (same order)."""
+        out = [self.hold.settle(key, pa) for key, pa in found]
+        self.hold.keep_only({key for key, _pa in found})
+        return out
 
     def update(self, found: Sequence[tuple[PlantAssessment, Sequence[str]]]
                ) -> tuple[PlantView, list[str]]:
-        """``found``: each job's plant assessment (with the job's loop names). Returns the
-        new view and the log lines of what changed."""
-        new = [(g.period_s, g.source, g.loops, g.reason, pa)
+        """``found``: each job's plant assessment in force (with the job's loop names).
+        Returns the new view and the log lines of what changed."""
+        new = [(g.period_s, g.source, g.loops, g.reason, g.entry)
                for pa, _names in found for g in pa.groups]
         new.sort(key=lambda x: (-len(x[2]), x[0]))  # big groups choose their number first
         free = dict(self.groups)
         out: list[PlantGroup] = []
         events: list[str] = []
         taken: set[int] = set()
-        for period, source, loops, reason, _pa in new:
+        for period, source, loops, reason, entry in new:
             members = set(loops)
             best = max(free.values(), key=lambda g: (len(members & set(g.loops)), -g.number),
                        default=None)
@@ -150,20 +187,23 @@ class PlantTracker:
                 number = best.number
                 del free[number]
                 if best.source != source:
-                    events.append(f"plant group {number}: source {_src(source)} (was "
-                                  f"{_src(best.source)}), period {period:.0f} s, "
+                    self.changes["source"] += 1
+                    events.append(f"plant group {number}: source {_src(source, entry)} (was "
+                                  f"{_src(best.source, best.entry)}), period {period:.0f} s, "
                                   f"{len(loops)} loops")
             else:
                 number = next(k for k in range(1, len(self.groups) + len(new) + 2)
                               if k not in self.groups and k not in taken)
+                self.changes["group_appeared"] += 1
                 events.append(f"plant group {number} appeared: period {period:.0f} s, "
-                              f"source {_src(source)}, {len(loops)} loops: "
+                              f"source {_src(source, entry)}, {len(loops)} loops: "
                               f"{_listed(loops)}")
             taken.add(number)
-            out.append(PlantGroup(number, period, source, tuple(loops), reason))
+            out.append(PlantGroup(number, period, source, tuple(loops), reason, entry))
         for g in sorted(free.values(), key=lambda g: g.number):
+            self.changes["group_ended"] += 1
             events.append(f"plant group {g.number} ended (period {g.period_s:.0f} s, source "
-                          f"{_src(g.source)}, {len(g.loops)} loops)")
+                          f"{_src(g.source, g.entry)}, {len(g.loops)} loops)")
         out = [g for g in out if g.number <= MAX_GROUP_NUMBER]
         out.sort(key=lambda g: g.number)
         self.groups = {g.number: g for g in out}
@@ -177,11 +217,21 @@ class PlantTracker:
                 found_number = by_key.get((sg.period_s, sg.loops))
                 if found_number is not None:
                     roles[name] = (found_number, role.role)
-        return PlantView(tuple(out), roles), events
+        self.changes["role"] += sum(1 for n in set(roles) | set(self._roles)
+                                    if _role(self._roles, n) != _role(roles, n))
+        self._roles = roles
+        self.changes["held"] = self.hold.held
+        return PlantView(tuple(out), roles, dict(self.changes)), events
 
 
-def _src(source: str | None) -> str:
-    return "none among the loops (from outside)" if source is None else source
+def _role(roles: Mapping[str, tuple[int, str]], name: str) -> str:
+    return roles.get(name, (0, ""))[1]
+
+
+def _src(source: str | None, entry: str | None = None) -> str:
+    if source is not None:
+        return source
+    return f"none among the loops (enters by {entry})" if entry else "none among the loops"
 
 
 def _listed(loops: Sequence[str], most: int = 8) -> str:

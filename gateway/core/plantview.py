@@ -28,14 +28,17 @@ class PlantGroup:
     source: str | None
     loops: tuple[str, ...]
     reason: str = ""
+    entry: str | None = None  # the indicator the cycle enters by from outside (no source)
 
 
 @dataclasses.dataclass(frozen=True)
 class PlantView:
-    """The groups and, per loop in one, its (group number, role)."""
+    """The groups, per loop in one its (group number, role), and the changes counted
+    since the gateway started (:data:`gateway.core.plant.CHANGES`)."""
 
     groups: tuple[PlantGroup, ...] = ()
     roles: Mapping[str, tuple[int, str]] = dataclasses.field(default_factory=dict)
+    changes: Mapping[str, int] = dataclasses.field(default_factory=dict)
 
     def of(self, loop: str) -> tuple[int, str, str | None]:
         """(group number, role, source) of ``loop``; (0, "", None) when in no group."""

@@ -143,8 +143,9 @@ def test_groups_keep_their_number_and_each_change_is_one_line() -> None:
     assert sorted(events) == sorted([
         "plant group 1: source B (was A), period 155 s, 2 loops",
         "plant group 3 appeared: period 40 s, source X, 2 loops: X, Y",
-        "plant group 2 ended (period 600 s, source none among the loops (from outside), "
-        "2 loops)"])
+        "plant group 2 ended (period 600 s, source none among the loops, 2 loops)"])
+    assert view.changes["group_appeared"] == 3 and view.changes["group_ended"] == 1
+    assert view.changes["source"] == 1
     view, events = t.update([(_pa((155.0, "B", ("A", "B"))), ())])
     assert events == ["plant group 3 ended (period 40 s, source X, 2 loops)"]
     view, events = t.update([(_pa((155.0, "B", ("A", "B")), (90.0, "Q", ("Q", "R"))), ())])
