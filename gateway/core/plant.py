@@ -38,20 +38,16 @@ from numpy.typing import NDArray
 from stiction import Assessment
 
 from .planthold import Hold
-from .plantview import MAX_GROUP_NUMBER, PlantGroup, PlantView
+from .plantview import CHANGES, MAX_GROUP_NUMBER, PlantGroup, PlantView
 from .points import Quality
 from .windows import LoopGroup
 
 if TYPE_CHECKING:  # the analysis only in the worker (it brings in scipy.signal, ~0.5 s)
     from stiction.plant import PlantAssessment
 
-__all__ = ["CHANGES", "CHUNK", "PlantJob", "PlantTracker", "analyze_plant_job", "plant_jobs"]
+__all__ = ["CHUNK", "PlantJob", "PlantTracker", "analyze_plant_job", "plant_jobs"]
 
 CHUNK = 512  # loops copied out of a bank at once (bounds the copies' memory)
-CHANGES = ("group_appeared", "group_ended", "source", "role", "held")
-"""What :attr:`PlantTracker.changes` counts: published changes of each kind (a loop's role
-counts when it becomes or stops being a source or a follower), and ``held``: rounds a
-changed story was held back (:mod:`.planthold`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,6 +65,7 @@ class PlantJob:
     units: Mapping[str, str] = dataclasses.field(default_factory=dict)  # loop -> its unit
     key: tuple[float, int] = (0.0, 0)  # the time base: poll interval, window length
     previous: PlantAssessment | None = None  # the view in force for this time base
+    newest: float | None = None  # process time of the newest sample in the windows
 
 
 def _averaged(x: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
@@ -103,6 +100,8 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
         pvs: list[NDArray[np.float32]] = []
         processes: dict[str, str] = {}
         units: dict[str, str] = {}
+        newest = max((float(g.bank.t[(g.bank.head - 1) % g.bank.size]) for g in members),
+                     default=None)
         for g in members:
             cols = [c for c in range(len(g.configs)) if int(g.rows[c]) in assessments]
             for lo in range(0, len(cols), CHUNK):
@@ -133,7 +132,7 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
             np.concatenate(ops) if ops else np.zeros((0, width), np.float32),
             np.concatenate(pvs) if pvs else np.zeros((0, width), np.float32),
             ts * factor, {nm: assessments[r] for r, nm in zip(rows, names, strict=True)},
-            processes, units, (ts, length), (previous or {}).get((ts, length))))
+            processes, units, (ts, length), (previous or {}).get((ts, length)), newest))
     return jobs
 
 
@@ -161,12 +160,25 @@ class PlantTracker:
         """The plant assessment in force per time base (the jobs' ``previous``)."""
         return self.hold.in_force  # type: ignore[return-value]
 
-    def settle(self, found: Sequence[tuple[tuple[float, int], PlantAssessment]]
-               ) -> list[PlantAssessment]:
-        """This round's assessment per time base in, the ones in force out (same order)."""
-        out = [self.hold.settle(key, pa) for key, pa in found]
-        self.hold.keep_only({key for key, _pa in found})
-        return out
+    def round(self, jobs: Sequence[PlantJob], found: Sequence[PlantAssessment]
+              ) -> tuple[dict[int, Assessment], PlantView, list[str]]:
+        """A round's plant step after the workers: each job's new assessment (``found``)
+        settled against the one in force, the in-force ones applied to the job's
+        assessments (store row -> the plant-aware assessment of each loop it changed), the
+        new view and its log lines."""
+        in_force = [self.hold.settle(job.key, pa, newest=job.newest,
+                                     span=job.key[0] * job.key[1])
+                    for job, pa in zip(jobs, found, strict=True)]
+        self.hold.keep_only({job.key for job in jobs})
+        applied: dict[int, Assessment] = {}
+        for job, pa in zip(jobs, in_force, strict=True):
+            changed = pa.apply(job.assessments)
+            for row, name in zip(job.rows, job.names, strict=True):
+                if changed[name] is not job.assessments[name]:
+                    applied[row] = changed[name]
+        view, events = self.update([(pa, job.names) for job, pa in zip(jobs, in_force,
+                                                                       strict=True)])
+        return applied, view, events
 
     def update(self, found: Sequence[tuple[PlantAssessment, Sequence[str]]]
                ) -> tuple[PlantView, list[str]]:

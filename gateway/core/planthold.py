@@ -26,7 +26,11 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:  # the analysis only in the worker
     from stiction.plant import PlantAssessment
 
-__all__ = ["Hold", "story"]
+__all__ = ["WINDOW_SHARE", "Hold", "story"]
+
+WINDOW_SHARE = 0.125
+"""Share of the window's span a changed story must last (an eighth: at the gateway's
+defaults, 300 s rounds on two-hour windows, three rounds)."""
 
 
 def story(pa: PlantAssessment) -> frozenset[Any]:
@@ -42,6 +46,7 @@ def story(pa: PlantAssessment) -> frozenset[Any]:
 class _Pending:
     story: frozenset[Any]
     rounds: int
+    since: float | None  # process time of the newest sample when it was first seen
 
 
 class Hold:
@@ -55,8 +60,11 @@ class Hold:
         self._pending: dict[Hashable, _Pending] = {}
         self.held = 0  # rounds a changed story was held back, in all
 
-    def settle(self, key: Hashable, pa: PlantAssessment) -> PlantAssessment:
-        """The assessment in force for time base ``key`` after this round's ``pa``."""
+    def settle(self, key: Hashable, pa: PlantAssessment, *, newest: float | None = None,
+               span: float = 0.0) -> PlantAssessment:
+        """The assessment in force for time base ``key`` after this round's ``pa``;
+        ``newest``: the process time of the round's newest sample, ``span``: the window's
+        span, s (without them, rounds alone count)."""
         now = self.in_force.get(key)
         new = story(pa)
         if now is None or story(now) == new:
@@ -64,12 +72,16 @@ class Hold:
             self.in_force[key] = pa
             return pa
         pending = self._pending.get(key)
-        count = pending.rounds + 1 if pending is not None and pending.story == new else 1
-        if count >= self.rounds:
+        if pending is None or pending.story != new:
+            pending = _Pending(new, 0, newest)
+        pending.rounds += 1
+        lasted = newest is None or pending.since is None or \
+            newest - pending.since >= WINDOW_SHARE * span
+        if pending.rounds >= self.rounds and lasted:
             self._pending.pop(key, None)
             self.in_force[key] = pa
             return pa
-        self._pending[key] = _Pending(new, count)
+        self._pending[key] = pending
         self.held += 1
         return now
 

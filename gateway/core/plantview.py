@@ -11,11 +11,15 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 
-__all__ = ["MAX_GROUP_NUMBER", "ROLE_CODES", "PlantGroup", "PlantView"]
+__all__ = ["CHANGES", "MAX_GROUP_NUMBER", "ROLE_CODES", "PlantGroup", "PlantView"]
 
 ROLE_CODES = {"": 0, "source": 1, "follower": 2}
 """A loop's role as a number (Modbus register +18, high byte): 0 in no group."""
 MAX_GROUP_NUMBER = 255  # the register's low byte
+CHANGES = ("group_appeared", "group_ended", "source", "role", "held")
+"""What :attr:`PlantView.changes` counts: published changes of each kind (a loop's role
+counts when it becomes or stops being a source or a follower), and ``held``: rounds a
+changed view was held back (:mod:`gateway.core.planthold`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -34,7 +38,7 @@ class PlantGroup:
 @dataclasses.dataclass(frozen=True)
 class PlantView:
     """The groups, per loop in one its (group number, role), and the changes counted
-    since the gateway started (:data:`gateway.core.plant.CHANGES`)."""
+    since the gateway started (:data:`CHANGES`)."""
 
     groups: tuple[PlantGroup, ...] = ()
     roles: Mapping[str, tuple[int, str]] = dataclasses.field(default_factory=dict)

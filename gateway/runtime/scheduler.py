@@ -247,16 +247,10 @@ class AnalysisScheduler:
         except Exception:  # a bug in the plant view must not stop the per-loop results
             log.exception("plant analysis failed; per-loop results published as they are")
             return {}
-        in_force = self.tracker.settle([(job.key, pa) for job, pa in zip(jobs, outs,
-                                                                         strict=True)])
-        applied: dict[int, Assessment] = {}
-        for job, pa in zip(jobs, in_force, strict=True):
-            changed = pa.apply(job.assessments)
-            for row, name in zip(job.rows, job.names, strict=True):
-                if changed[name] is not job.assessments[name]:
-                    applied[row] = changed[name]
-        self._set_plant(store, [(pa, job.names) for job, pa in zip(jobs, in_force,
-                                                                      strict=True)])
+        applied, view, events = self.tracker.round(jobs, outs)
+        for line in events:
+            plant_log.info("%s", line)
+        store.set_plant(view)
         self.last_plant_s = time.perf_counter() - t0
         return applied
 

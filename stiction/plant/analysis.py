@@ -218,8 +218,9 @@ def analyze_plant(
         Loop or indicator name -> its unit: groups form within a unit (an indicator
         without one may join any unit's groups). None or empty: one unit.
     previous
-        The last round's assessment of the same loops (the gateway): a source named then
-        stays while its evidence stands (:mod:`.decide`).
+        The last round's assessment of the same loops (the gateway): a group's members stay
+        with lower thresholds and others join with higher ones (:mod:`.groups`), a source
+        named then stays while its evidence stands (:mod:`.decide`).
     """
     if not ts > 0:
         raise ParameterError("ts", f"must be > 0, was {ts!r}")
@@ -237,12 +238,14 @@ def analyze_plant(
     for i, o in zip(np.flatnonzero(usable), oscs, strict=True):
         by_row[int(i)] = o
     unit_of = dict(units or {})
+    held = [] if previous is None else [(g.period_s / ts, {m.name for m in g.members})
+                                        for g in previous.groups]
     raw: list[tuple[str, RawGroup]] = []
     for unit in sorted({unit_of.get(nm, "") for nm in names}):
         rows_in = np.array([(unit_of.get(o, "") == unit) or (not loop and o not in unit_of)
                             for o, loop in zip(owner, is_loop, strict=True)])
         raw += [(unit, g) for g in find_groups(spec, by_row, owner, is_loop, rows=rows_in,
-                                                  signals=signals)]
+                                                  signals=signals, held=held)]
     raw.sort(key=lambda x: (x[1].period, x[0]))
     sigs = Signals(signals, spec, names, {nm: k for k, nm in enumerate(names)}, owner,
                    is_loop, ts)

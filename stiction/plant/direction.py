@@ -35,7 +35,7 @@ from scipy import signal as sp_signal
 
 from .._validate import FloatArray
 
-__all__ = ["ORDER", "cycle_band", "granger", "net_flow", "phase_lag"]
+__all__ = ["ORDER", "band_passed", "cycle_band", "granger", "net_flow", "phase_lag"]
 
 SAMPLES_PER_CYCLE = 16
 ORDER = 8  # half a cycle of the past
@@ -49,17 +49,30 @@ def cycle_band(x: FloatArray, period: float) -> FloatArray:
     to ``SAMPLES_PER_CYCLE`` a cycle: its last ``MAX_CYCLES`` cycles, unit variance. Two
     signals of one length give two series on one grid."""
     n = x.size
-    f0 = 1.0 / period
-    high = min(HIGH * f0, 0.45)
-    y = np.asarray(x, dtype=np.float64) - float(np.mean(x))
-    if LOW * f0 < high:
-        sos = sp_signal.butter(2, [2.0 * LOW * f0, 2.0 * high], btype="bandpass", output="sos")
-        y = sp_signal.sosfiltfilt(sos, y)
+    y = band_passed(np.asarray(x, dtype=np.float64), period)
     start = max(0.0, n - 1 - MAX_CYCLES * period)
     grid = np.arange(n - 1.0, start, -period / SAMPLES_PER_CYCLE)[::-1]
     z = np.interp(grid, np.arange(n), y)
     sd = float(np.std(z))
     return np.asarray(z / sd) if sd > 0 else np.zeros_like(z)
+
+
+def band_passed(x: FloatArray, period: float) -> FloatArray:
+    """``x`` less its mean, band-passed from ``LOW`` to ``HIGH`` times its cycle's frequency
+    (capped below Nyquist): a zero-phase second-order Butterworth filter."""
+    f0 = 1.0 / period
+    high = min(HIGH * f0, 0.45)
+    y = x - float(np.mean(x))
+    if LOW * f0 >= high:
+        return y
+    return np.asarray(sp_signal.sosfiltfilt(_bandpass(round(2.0 * LOW * f0, 9),
+                                                      round(2.0 * high, 9)), y))
+
+
+@functools.lru_cache(maxsize=64)
+def _bandpass(low: float, high: float) -> FloatArray:
+    """The filter's second-order sections (one design per group: its members share it)."""
+    return np.asarray(sp_signal.butter(2, [low, high], btype="bandpass", output="sos"))
 
 
 def _lagged(x: FloatArray) -> FloatArray:

@@ -3,7 +3,8 @@
 1. **Seeds.** Every signal whose ACF shows a regular oscillation (Thornhill, Huang and
    Zhang 2003: regularity above ``SEED_REGULARITY``, the lobe one period out significant,
    :func:`stiction.signal.oscillation.detect_oscillation`) with a period of ``MIN_PERIOD``
-   samples to a third of the window.
+   samples to a ``SEED_CYCLES``-th of the window (fewer cycles: a slow wander two loops
+   happen to share looks regular in one window and not in the next).
 2. **Clusters.** Seeds sorted by period; a cluster takes the next seed while its period is
    within ``2 * BAND`` of the cluster's first (about linear in the signals: one sort).
 3. **Members.** A cluster's band is its median frequency ``f0`` times ``1 -+ BAND``; every
@@ -20,6 +21,14 @@
 A group needs ``MIN_LOOPS`` loops among its members, ``MIN_SEED_LOOPS`` of them seeds; a
 signal of no loop (an indicator) joins as what it is. Clusters whose bands overlap are
 merged.
+
+Hysteresis (``held``: the groups of the round before, the gateway's): where a cluster has
+the period of a group held (within ``2 * BAND``), that group's members stay with thresholds
+``KEEP`` times as low (coherence ``COHERENCE_MARGIN`` lower) and other signals join only
+with thresholds ``JOIN`` times as high (coherence as much higher): a loop whose share of the
+cycle hovers about a threshold neither joins nor leaves round after round (a stationary
+plant's one-hour windows put a weak follower's share anywhere from 0.10 to 0.25 of its
+power in two hours of rounds: tests/runtime/test_plant_story.py).
 """
 
 from __future__ import annotations
@@ -30,7 +39,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..signal.oscillation import Oscillation
-from .spectra import MIN_CYCLES, MIN_PERIOD, Spectra
+from .spectra import MIN_PERIOD, Spectra
 
 __all__ = ["BAND", "COHERENT", "MIN_LOOPS", "SEED_REGULARITY", "SHARE", "RawGroup",
            "coherence_at", "find_groups"]
@@ -47,6 +56,8 @@ carries weakly but clearly."""
 PEAK = 5.0
 COHERENT = 0.8
 SEGMENTS = 7
+KEEP, JOIN, COHERENCE_MARGIN = 0.5, 1.5, 0.1
+SEED_CYCLES = 5.0
 SEED_REGULARITY = 1.0
 """Thornhill's regularity a seed needs (r > 1: a regular oscillation)."""
 MIN_LOOPS = 2
@@ -99,14 +110,15 @@ def coherence_at(x: np.ndarray, ref: np.ndarray, f0: float) -> np.ndarray:
 
 def find_groups(spec: Spectra, oscillations: Sequence[Oscillation | None],
                 owner: Sequence[str], is_loop: Sequence[bool], *,
-                rows: np.ndarray | None = None,
-                signals: np.ndarray | None = None) -> list[RawGroup]:
+                rows: np.ndarray | None = None, signals: np.ndarray | None = None,
+                held: Sequence[tuple[float, set[str]]] = ()) -> list[RawGroup]:
     """The shared oscillations among the signals of ``spec``: ``oscillations[i]`` is
     signal ``i``'s ACF oscillation (None when not analysed), ``owner[i]`` its loop or
     indicator name, ``is_loop[i]`` whether that owner is a loop; ``rows`` (a mask) the
     signals that may take part (one unit's), all when None; ``signals`` the series (rows
-    as in ``spec``, gaps bridged) for the coherence test, none when None."""
-    longest = spec.n / MIN_CYCLES
+    as in ``spec``, gaps bridged) for the coherence test, none when None; ``held`` the
+    groups of the round before as (period in samples, member names)."""
+    longest = spec.n / SEED_CYCLES
     allowed = spec.usable if rows is None else spec.usable & rows
     seeds = [(float(o.period), i) for i, o in enumerate(oscillations)
              if allowed[i] and o is not None and o.oscillating and o.period is not None
@@ -114,27 +126,57 @@ def find_groups(spec: Spectra, oscillations: Sequence[Oscillation | None],
     groups: list[RawGroup] = []
     for cluster in _clusters(seeds):
         period = float(np.median([p for p, _ in cluster]))
-        f0 = 1.0 / period
-        lo, hi = f0 * (1.0 - BAND), f0 * (1.0 + BAND)
-        share = spec.band(lo, hi)
-        around = (spec.band(f0 / 2.0, 2.0 * f0) - share) / _bins(spec, f0 / 2.0, 2.0 * f0, lo, hi)
-        peak = share / np.maximum(around * _bins(spec, lo, hi), 1e-300)
-        member = ((share >= SHARE) | ((share >= PEAK_SHARE) & (peak >= PEAK))) & allowed
-        for _, i in cluster:
-            member[i] = True
-        if signals is not None:
-            ref = max((i for _, i in cluster), key=lambda i: share[i])
-            maybe = np.flatnonzero(~member & allowed & (share >= PEAK_SHARE))
-            coh = coherence_at(signals[maybe], signals[ref], f0)
-            member[maybe[coh >= COHERENT]] = True
+        was = _was(period, held, owner)
+        member = _members(spec, period, cluster, allowed=allowed, signals=signals, was=was)
         picked = [int(i) for i in np.flatnonzero(member)]
         loops = {owner[i] for i in picked if is_loop[i]}
         seeded = {owner[i] for _, i in cluster if is_loop[i]}
         if len(loops) < MIN_LOOPS or len(seeded) < MIN_SEED_LOOPS:
             continue
+        share = spec.band((1.0 - BAND) / period, (1.0 + BAND) / period)
         groups.append(RawGroup(period, tuple(picked),
                                tuple(float(share[i]) for i in picked)))
     return _merged(groups)
+
+
+def _was(period: float, held: Sequence[tuple[float, set[str]]], owner: Sequence[str]
+         ) -> np.ndarray | None:
+    """Per signal: was its owner a member of the held group of this period (None: no
+    such group)?"""
+    near = [(abs(p / period - 1.0), names) for p, names in held
+            if abs(p / period - 1.0) <= 2.0 * BAND]
+    if not near:
+        return None
+    names = min(near, key=lambda x: x[0])[1]
+    return np.array([o in names for o in owner])
+
+
+def _members(spec: Spectra, period: float, cluster: list[tuple[float, int]], *,
+             allowed: np.ndarray, signals: np.ndarray | None, was: np.ndarray | None
+             ) -> np.ndarray:
+    """Which signals carry the cluster's cycle (module doc), with the hysteresis of
+    ``was``."""
+    f0 = 1.0 / period
+    lo, hi = f0 * (1.0 - BAND), f0 * (1.0 + BAND)
+    share = spec.band(lo, hi)
+    around = (spec.band(f0 / 2.0, 2.0 * f0) - share) / _bins(spec, f0 / 2.0, 2.0 * f0, lo, hi)
+    peak = share / np.maximum(around * _bins(spec, lo, hi), 1e-300)
+    coh = np.zeros(share.size)
+    if signals is not None:
+        ref = max((i for _, i in cluster), key=lambda i: share[i])
+        maybe = np.flatnonzero(allowed & (share >= PEAK_SHARE * KEEP) & (share < SHARE))
+        coh[maybe] = coherence_at(signals[maybe], signals[ref], f0)
+
+    def by(k: float, dc: float) -> np.ndarray:
+        return (share >= SHARE * k) | ((share >= PEAK_SHARE * k) & (peak >= PEAK * k)) | \
+            (coh >= COHERENT + dc)
+
+    member = by(1.0, 0.0) if was is None else \
+        np.where(was, by(KEEP, -COHERENCE_MARGIN), by(JOIN, COHERENCE_MARGIN))
+    member &= allowed
+    for _, i in cluster:
+        member[i] = True
+    return np.asarray(member)
 
 
 def _bins(spec: Spectra, lo: float, hi: float, cut_lo: float = 0.0, cut_hi: float = 0.0

@@ -12,10 +12,11 @@ The test (surrogate data, Theiler et al. 1992): a nonlinear time series is predi
 better, from its own past, than surrogates with its power spectrum and its distribution
 but random phases. :func:`nonlinearity`:
 
-1. **The cycle.** The signal is band-passed around the cycle (``LOW`` to ``HIGH`` times the
+1. **The cycle.** The signal is band-passed around the cycle (0.5 to 5.5 times the
    fundamental: the slow trends and the noise out, the harmonics in; a zero-phase
-   Butterworth filter) and resampled to ``SAMPLES_PER_CYCLE`` samples a cycle, so the
-   embedding spans one cycle whatever the sampling (10 s or 60 s of a historian).
+   Butterworth filter, :func:`.direction.band_passed`) and resampled to
+   ``SAMPLES_PER_CYCLE`` samples a cycle, so the embedding spans the same part of a cycle
+   whatever the sampling (10 s or 60 s of a historian).
 2. **End matching.** The last whole number of cycles (at most ``MAX_CYCLES``), starting
    where the series' first and last values and slopes match best (a Fourier surrogate
    treats the record as periodic: a jump at the ends would add false harmonics).
@@ -23,7 +24,7 @@ but random phases. :func:`nonlinearity`:
    1992): the same power spectrum, the phases random. Not IAAFT
    (Schreiber and Schmitz 1996), which also gives each surrogate the signal's values: for
    a square cycle the two values it jumps between rebuild the square, and the index of a
-   jittered square wave fell from 2-3 to 0.1-0.7 (as low as a linear resonance's).
+   jittered square wave fell from 1.3-3.6 to 0.1-0.7 (as low as a linear resonance's).
 4. **Prediction error.** Each point ``HORIZON`` sample ahead predicted from the
    ``NEIGHBOURS`` nearest of its embedding vectors (``EMBED`` samples, half a cycle; the
    neighbours at least half a cycle away in time), the mean absolute error of the signal
@@ -33,8 +34,9 @@ but random phases. :func:`nonlinearity`:
    or below it is not told from a linear one.
 
 The parameters are this project's starting points, set on test cycles whose answer is
-known (a jittered square and sawtooth wave against a linear resonance: indices 2-5 against
--0.1-0.4, tests/stiction/plant/test_evidence.py); the papers' own values differ in detail.
+known (a jittered square and sawtooth wave against a linear resonance: indices 1.3-3.5
+against -0.1-0.6, tests/stiction/plant/test_evidence.py); the papers' own values differ in
+detail.
 """
 
 from __future__ import annotations
@@ -43,22 +45,21 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy import signal as sp_signal
 
 from .._validate import FloatArray
+from .direction import band_passed
 
 __all__ = ["NLI_NONLINEAR", "Nonlinearity", "nonlinearity"]
 
-SAMPLES_PER_CYCLE = 24
-EMBED = 12  # half a cycle
+SAMPLES_PER_CYCLE = 16
+EMBED = 8  # half a cycle
 HORIZON = 1
 NEIGHBOURS = 4
-SURROGATES = 19
+SURROGATES = 11
 MAX_CYCLES = 24
 MIN_CYCLES = 5
 """Whole cycles the window must hold for an index (fewer: None): the nearest neighbours of
 one cycle are found in the others."""
-LOW, HIGH = 0.5, 5.5
 NLI_NONLINEAR = 1.0
 """An index above this: the cycle is nonlinear (Thornhill 2005)."""
 
@@ -85,12 +86,7 @@ def _band_cycles(x: FloatArray, period: float) -> FloatArray | None:
     cycles = min(MAX_CYCLES, int(x.size / period))
     if cycles < MIN_CYCLES:
         return None
-    f0 = 1.0 / period  # cycles per sample; Nyquist is 0.5
-    high = min(HIGH * f0, 0.45)
-    y = x - float(np.mean(x))
-    if LOW * f0 < high:
-        sos = sp_signal.butter(2, [2.0 * LOW * f0, 2.0 * high], btype="bandpass", output="sos")
-        y = sp_signal.sosfiltfilt(sos, y)
+    y = band_passed(x, period)
     step = period / SAMPLES_PER_CYCLE
     grid = np.arange(0.0, x.size - 1, step)
     z = np.interp(grid, np.arange(x.size), y)
@@ -126,20 +122,24 @@ def _surrogates(x: FloatArray, count: int, rng: np.random.Generator) -> FloatArr
     return np.asarray(out / out.std(axis=1, keepdims=True))
 
 
-def _prediction_error(x: FloatArray) -> float:
-    """Mean absolute error of predicting ``x`` ``HORIZON`` samples ahead from the
-    ``NEIGHBOURS`` nearest embedding vectors at least half a cycle away in time (every
-    second point predicted: the error is a mean, half the points estimate it as well)."""
-    n = x.size - EMBED + 1 - HORIZON
-    windows = np.lib.stride_tricks.sliding_window_view(x.astype(np.float32), EMBED)[:n]
+def _prediction_errors(xs: FloatArray) -> FloatArray:
+    """Per row of ``xs``: the mean absolute error of predicting it ``HORIZON`` samples ahead
+    from the ``NEIGHBOURS`` nearest embedding vectors at least half a cycle away in time
+    (every second point predicted: the error is a mean, half the points estimate it as
+    well; all rows in one batch)."""
+    n = xs.shape[1] - EMBED + 1 - HORIZON
+    windows = np.lib.stride_tricks.sliding_window_view(xs.astype(np.float32), EMBED,
+                                                       axis=1)[:, :n]
     targets = np.arange(0, n, 2)
-    sq = np.einsum("ij,ij->i", windows, windows)
-    d = sq[targets, None] + sq[None, :] - 2.0 * (windows[targets] @ windows.T)
-    d[np.abs(targets[:, None] - np.arange(n)[None, :]) < SAMPLES_PER_CYCLE // 2] = np.inf
-    near = np.argpartition(d, NEIGHBOURS, axis=1)[:, :NEIGHBOURS]
-    target = x[targets + EMBED - 1 + HORIZON]
-    pred = x[near + EMBED - 1 + HORIZON].mean(axis=1)
-    return float(np.mean(np.abs(pred - target)))
+    sq = np.einsum("kij,kij->ki", windows, windows)
+    d = sq[:, targets, None] + sq[:, None, :] - 2.0 * np.matmul(
+        windows[:, targets], windows.transpose(0, 2, 1))
+    d[:, np.abs(targets[:, None] - np.arange(n)[None, :]) < SAMPLES_PER_CYCLE // 2] = np.inf
+    near = np.argpartition(d, NEIGHBOURS, axis=2)[:, :, :NEIGHBOURS]
+    rows = np.arange(xs.shape[0])[:, None, None]
+    pred = xs[rows, near + EMBED - 1 + HORIZON].mean(axis=2)
+    target = xs[:, targets + EMBED - 1 + HORIZON]
+    return np.asarray(np.mean(np.abs(pred - target), axis=1))
 
 
 def nonlinearity(x: FloatArray, period: float, *, seed: int = 0) -> Nonlinearity | None:
@@ -152,8 +152,8 @@ def nonlinearity(x: FloatArray, period: float, *, seed: int = 0) -> Nonlinearity
     if z is None:
         return None
     rng = np.random.default_rng(seed)
-    own = _prediction_error(z)
-    errors = np.array([_prediction_error(s) for s in _surrogates(z, SURROGATES, rng)])
+    all_errors = _prediction_errors(np.vstack((z, _surrogates(z, SURROGATES, rng))))
+    own, errors = float(all_errors[0]), all_errors[1:]
     mean, sd = float(errors.mean()), float(errors.std(ddof=1))
     index = (mean - own) / (3.0 * sd) if sd > 0 else 0.0
     return Nonlinearity(float(index), own, mean, sd, z.size // SAMPLES_PER_CYCLE)

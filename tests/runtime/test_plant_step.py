@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 import yaml
 from memory_harness import mconfig, mloop
-from plant_fixtures import plant_records
+from plant_fixtures import loop_group, plant_records
 
 from gateway.cli import main
-from gateway.config import LoopConfig, PlantSettings, PointConfig, load_config, parse_config
+from gateway.config import PlantSettings, load_config, parse_config
 from gateway.core.plant import PlantTracker, plant_jobs
 from gateway.core.plantview import PlantGroup, PlantView
 from gateway.core.points import Quality
 from gateway.core.store import ResultStore
-from gateway.core.windows import LoopGroup, WindowBank, load_columns
+from gateway.core.windows import LoopGroup
 from gateway.errors import ConfigError
 from gateway.inputs.memory import memory_device
 from gateway.runtime.gateway import Gateway
@@ -35,21 +35,7 @@ from stiction.plant import Group, LoopRole, Member, PlantAssessment
 SUSPICIOUS = "plant_fake_analyze:analyze"
 
 
-def _group(rec_loops: dict[str, tuple[np.ndarray, np.ndarray]], ts: float,
-           processes: dict[str, str], device: str = "plc", *, first_row: int = 0,
-           size: int | None = None) -> LoopGroup:
-    names = list(rec_loops)
-    n = len(next(iter(rec_loops.values()))[0])
-    bank = WindowBank(names, size or n)
-    q = np.full(n, Quality.GOOD, dtype=np.uint8)
-    load_columns(bank, np.arange(n, dtype=np.float64) * ts,
-                 {c: (op.astype(np.float32), pv.astype(np.float32), q)
-                  for c, (op, pv) in enumerate(rec_loops.values())})
-    configs = tuple(LoopConfig(nm, device, PointConfig(None), PointConfig(None), 20 * k,
-                               process=processes.get(nm, "self-regulating"))
-                    for k, nm in enumerate(names))
-    cols = np.arange(len(names), dtype=np.intp)
-    return LoopGroup(device, bank, configs, cols, cols, cols + first_row, ts)
+_group = loop_group  # (tests/support/plant_fixtures.py)
 
 
 def _round(groups: list[LoopGroup], store: ResultStore, analyze: str,
