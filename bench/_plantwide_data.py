@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import os
 import pickle
 from pathlib import Path
 from typing import Any
@@ -115,10 +116,13 @@ def view(kind: str, count: int, seed: int, ts: float) -> Analysed:
 
 def tep_runs() -> list[tuple[Any, dict[str, Assessment]]]:
     """The corpus's TEP plant runs, every loop analysed (self-regulating: the analysis is
-    told nothing); cached by stiction's code and the runs. Empty without the corpus."""
-    from bench.corpus import load_plant_runs  # noqa: PLC0415  (the built corpus)
+    told nothing); cached by stiction's code and the runs. Empty without the corpus;
+    ``PLANTWIDE_CORPUS`` names another corpus folder (a copy being built: the runs so far)."""
+    from bench.corpus import CACHE as CORPUS  # noqa: PLC0415  (the built corpus)
+    from bench.corpus import load_plant_runs  # noqa: PLC0415
 
-    runs = [r for r in load_plant_runs() if r.source.startswith("tep-mode")]
+    folder = Path(os.environ.get("PLANTWIDE_CORPUS", str(CORPUS)))
+    runs = [r for r in load_plant_runs(cache=folder) if r.source.startswith("tep-mode")]
     if not runs:
         return []
     key = hashlib.sha256((_code_key() + "".join(r.id for r in runs)).encode()).hexdigest()

@@ -22,7 +22,8 @@ external cycles reported without a loop source (target 90 %) and by an indicator
 named a valve source (named, and called ``stiction``) in plants without a sticky valve.
 
 ``python -m bench plantwide``; ``PLANTWIDE_PLANTS=N`` plants per kind and seed (default
-30); ``PLANTWIDE_VIEWS=4,60`` some views only.
+30); ``PLANTWIDE_VIEWS=4,60`` some views only (``PLANTWIDE_VIEWS=none``: the TEP runs only);
+``PLANTWIDE_CORPUS=DIR`` the corpus folder (default bench/.cache/corpus).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from scipy import signal as sp_signal
 
 from bench._plantwide_data import VIEWS, cascades, processes, tep_runs, view
 from stiction import Assessment, Verdict
+from stiction.cli.plantout import as_json, text_lines
 from stiction.plant import Group, PlantAssessment, analyze_plant
 from stiction.plant.groups import BAND
 from stiction.plant.spectra import MIN_CYCLES, spectra
@@ -87,9 +89,18 @@ def group_of(pa: PlantAssessment, loop: str) -> Group | None:
 
 
 def stories(view_: PlantAssessment, after: dict[str, Assessment]) -> int:
-    """Loops that are ``follower`` and ``stiction`` at once (one story: must be 0)."""
-    return sum(1 for n, r in view_.roles.items()
-               if r.role == "follower" and after[n].verdict == Verdict.STICTION)
+    """Loops that are ``follower`` and ``stiction`` at once (one story: must be 0), in the
+    plant view, in ``stiction plant --json`` and in its text's loop table."""
+    roles = sum(1 for n, r in view_.roles.items()
+                if r.role == "follower" and after[n].verdict == Verdict.STICTION)
+    data = as_json(view_, after, [])
+    in_json = sum(1 for x in data["loops"]
+                  if x["role"] == "follower" and x["verdict"] == "stiction")
+    lines = text_lines(view_, after, [])
+    head = next(k for k, ln in enumerate(lines) if ln.startswith("loop "))
+    in_text = sum(1 for ln in lines[head + 1:head + 1 + len(after)]
+                  if ln.split()[1] == "stiction" and " follower " in ln)
+    return roles + in_json + in_text
 
 
 def score(kind: str, rec: PlantRecord, before: dict[str, Assessment],
@@ -212,8 +223,9 @@ def tep() -> None:
 def main() -> None:
     t0 = time.perf_counter()
     count = int(os.environ.get("PLANTWIDE_PLANTS", "30"))
-    views = tuple(float(v) for v in os.environ.get("PLANTWIDE_VIEWS", "").split(",") if v) \
-        or VIEWS
+    chosen = os.environ.get("PLANTWIDE_VIEWS", "")
+    views = () if chosen == "none" else \
+        tuple(float(v) for v in chosen.split(",") if v) or VIEWS
     warnings.filterwarnings("ignore", category=RuntimeWarning)  # coherence of a flat series
     for ts in views:
         for label, seeds in (("development", SEEDS), ("held out", HELD_OUT)):

@@ -70,12 +70,17 @@ class PlantJob:
 
 def _averaged(x: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
     """Rows of ``x`` averaged over blocks of ``factor`` samples (the oldest samples that
-    fill no whole block are dropped; a block with a gap is a gap)."""
+    fill no whole block are dropped): the mean of a block's good samples, a gap (NaN) when
+    fewer than half of them are good (a lone missed poll does not blank its block)."""
     if factor == 1:
         return x
     n = x.shape[1] // factor * factor
-    return np.asarray(x[:, x.shape[1] - n:].reshape(x.shape[0], -1, factor).mean(axis=2),
-                      dtype=np.float32)
+    blocks = x[:, x.shape[1] - n:].reshape(x.shape[0], -1, factor)
+    good = np.isfinite(blocks)
+    count = good.sum(axis=2)
+    total = np.where(good, blocks, 0.0).sum(axis=2, dtype=np.float64)
+    mean = np.divide(total, count, out=np.full(count.shape, np.nan), where=2 * count >= factor)
+    return np.asarray(mean, dtype=np.float32)
 
 
 def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment], *,

@@ -14,7 +14,7 @@ from ..plant.source import MemberEvidence
 from ..plant.spectra import spectra
 from ._common import pyplot
 
-__all__ = ["LEGEND", "as_json", "print_text", "spectral_map"]
+__all__ = ["LEGEND", "as_json", "print_text", "spectral_map", "text_lines"]
 
 LEGEND = (
     "confidence: the per-loop analysis' confidence that the loop's own valve sticks (0-1; "
@@ -102,26 +102,29 @@ def _group_text(g: Group) -> list[str]:
 
 
 def print_text(view: PlantAssessment, after: dict[str, Assessment], notes: list[str]) -> None:
-    if not view.groups:
-        print("no oscillation shared by two loops or more")
+    print("\n".join(text_lines(view, after, notes)))
+
+
+def text_lines(view: PlantAssessment, after: dict[str, Assessment], notes: list[str]
+               ) -> list[str]:
+    """The text report's lines: the groups, then the loop table (its header first)."""
+    out = [] if view.groups else ["no oscillation shared by two loops or more"]
     for g in view.groups:
-        print("\n".join(_group_text(g)))
+        out += _group_text(g)
     if view.groups:
-        print(f"({RANKING_LEGEND})")
-    print()
+        out.append(f"({RANKING_LEGEND})")
+    out.append("")
     rows = [("loop", "verdict", "confidence", "plant role", "reason")]
     for tag, a in after.items():
         role = view.roles[tag]
         place = f"group {role.group} {role.role}" if role.group else "-"
         rows.append((tag, str(a.verdict), _fmt(a.confidence, ".2f"), place, a.reason))
     widths = [max(len(r[k]) for r in rows) for k in range(4)]
-    for r in rows:
-        print("  ".join(c.ljust(w) for c, w in zip(r[:4], widths, strict=True)) + "  " + r[4])
-    print(f"({LEGEND})")
-    for name, why in view.left_out.items():
-        print(f"left out of the plant view: {name}: {why}")
-    for n in notes:
-        print(f"warning: {n}")
+    out += ["  ".join(c.ljust(w) for c, w in zip(r[:4], widths, strict=True)) + "  " + r[4]
+            for r in rows]
+    out.append(f"({LEGEND})")
+    out += [f"left out of the plant view: {name}: {why}" for name, why in view.left_out.items()]
+    return out + [f"warning: {n}" for n in notes]
 
 
 def spectral_map(path: Path, ts: float, loops: dict[str, tuple[np.ndarray, np.ndarray]],

@@ -16,9 +16,10 @@ In this order:
 3. **Its own valve.** Else the top candidate whose own valve evidence is enough
    (:attr:`.source.MemberEvidence.valve_named`), unless its cycle trails (net flow below 0,
    or below an indicator's).
-4. **Direction.** Else the top candidate when it leads the group (net flow at least
-   ``FLOW_NAME`` and the highest) and either its cycle is nonlinear (index above 1) and the
-   most nonlinear of the loops, or its valve score reaches ``SOURCE_SCORE`` (whatever its
+4. **Direction.** Else the top candidate when it leads the group (the highest net flow,
+   at least ``FLOW_LEADS``) and its cycle is nonlinear (index above 1) and the most
+   nonlinear of the loops (by ``NLI_MARGIN``, or with a net flow of ``FLOW_NAME``); or when
+   it leads by ``FLOW_NAME`` and its valve score reaches ``SOURCE_SCORE`` (whatever its
    per-loop confidence: leading and a sticky valve that explains its PV agree).
 5. Else no loop is named: none shows evidence of being the source (it may be outside the
    loops read, or not told from this data). No "enters from outside" without 1.
@@ -116,13 +117,19 @@ def _overrides(t: MemberEvidence, s: MemberEvidence, flow: Flow,
 
 
 def _leads(top: MemberEvidence, ranking: Sequence[MemberEvidence]) -> list[str]:
-    """The evidence that names ``top`` by direction (module doc, 4): it leads the group and
-    its cycle is the most nonlinear, or its valve score reaches ``SOURCE_SCORE``."""
-    if (top.flow or 0.0) < FLOW_NAME or (top.flow or 0.0) < max(e.flow or 0.0 for e in ranking):
+    """The evidence that names ``top`` by direction (module doc, 4): it leads the group
+    (net flow at least ``FLOW_LEADS`` and the highest) and its cycle is nonlinear and the
+    most nonlinear, by ``NLI_MARGIN`` or with a net flow of ``FLOW_NAME``; or it leads by
+    ``FLOW_NAME`` and its valve score reaches ``SOURCE_SCORE``."""
+    flow = top.flow or 0.0
+    if flow < FLOW_LEADS or flow < max(e.flow or 0.0 for e in ranking):
         return []
-    if _nli(top) > NLI_NONLINEAR and _nli(top) >= max(_nli(e) for e in ranking):
+    others = max((_nli(e) for e in ranking if e is not top), default=-1e9)
+    if _nli(top) > NLI_NONLINEAR and _nli(top) >= others and \
+            (flow >= FLOW_NAME or _nli(top) >= others + NLI_MARGIN):
         return ["direction", "nonlinearity"]
-    return ["direction", "own valve"] if top.valve >= SOURCE_SCORE else []
+    return ["direction", "own valve"] if flow >= FLOW_NAME and top.valve >= SOURCE_SCORE \
+        else []
 
 
 def _holds(e: MemberEvidence) -> bool:

@@ -3,8 +3,7 @@
 1. **Seeds.** Every signal whose ACF shows a regular oscillation (Thornhill, Huang and
    Zhang 2003: regularity above ``SEED_REGULARITY``, the lobe one period out significant,
    :func:`stiction.signal.oscillation.detect_oscillation`) with a period of ``MIN_PERIOD``
-   samples to a ``SEED_CYCLES``-th of the window (fewer cycles: a slow wander two loops
-   happen to share looks regular in one window and not in the next).
+   samples to a third of the window.
 2. **Clusters.** Seeds sorted by period; a cluster takes the next seed while its period is
    within ``2 * BAND`` of the cluster's first (about linear in the signals: one sort).
 3. **Members.** A cluster's band is its median frequency ``f0`` times ``1 -+ BAND``; every
@@ -39,7 +38,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..signal.oscillation import Oscillation
-from .spectra import MIN_PERIOD, Spectra
+from .spectra import MIN_CYCLES, MIN_PERIOD, Spectra
 
 __all__ = ["BAND", "COHERENT", "MIN_LOOPS", "SEED_REGULARITY", "SHARE", "RawGroup",
            "coherence_at", "find_groups"]
@@ -57,7 +56,6 @@ PEAK = 5.0
 COHERENT = 0.8
 SEGMENTS = 7
 KEEP, JOIN, COHERENCE_MARGIN = 0.5, 1.5, 0.1
-SEED_CYCLES = 5.0
 SEED_REGULARITY = 1.0
 """Thornhill's regularity a seed needs (r > 1: a regular oscillation)."""
 MIN_LOOPS = 2
@@ -118,7 +116,7 @@ def find_groups(spec: Spectra, oscillations: Sequence[Oscillation | None],
     signals that may take part (one unit's), all when None; ``signals`` the series (rows
     as in ``spec``, gaps bridged) for the coherence test, none when None; ``held`` the
     groups of the round before as (period in samples, member names)."""
-    longest = spec.n / SEED_CYCLES
+    longest = spec.n / MIN_CYCLES
     allowed = spec.usable if rows is None else spec.usable & rows
     seeds = [(float(o.period), i) for i, o in enumerate(oscillations)
              if allowed[i] and o is not None and o.oscillating and o.period is not None

@@ -155,7 +155,10 @@ def test_a_job_holds_one_time_base_averaged_down() -> None:
     j = jobs[1]
     assert j.op.shape == (4, 1000) and j.op.dtype == np.float32
     np.testing.assert_allclose(j.op[0], sig["A0"][0].reshape(-1, 3).mean(axis=1), atol=1e-6)
-    assert np.isnan(j.op[3, -4:]).all() and np.isfinite(j.op[3, :-4]).all()  # gaps: NaN
+    # the newest 10 samples bad: the last three blocks of three are gaps; the block before
+    # holds one bad sample and is the mean of its two good ones
+    assert np.isnan(j.op[3, -3:]).all() and np.isfinite(j.op[3, :-3]).all()
+    assert j.op[3, -4] == pytest.approx(float(sig["A0"][0][-12:-10].mean()), abs=1e-6)
     assert j.rows == (0, 1, 2, 3) and jobs[2].rows == (4, 5)
     # loops not assessed this round take no part; a time base with one loop has no job
     assert plant_jobs([a, b], {0: ok, 3: ok}, max_samples=5000)[0].names == ("A0", "B0")
