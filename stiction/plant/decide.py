@@ -5,9 +5,11 @@ In this order:
 
 1. **From outside.** An indicator (a measured signal of no loop) leads the loops' cycle
    (its Granger net flow to the group's leading signals at least ``FLOW_LEADS`` and above
-   every loop's) and no loop's cycle is more nonlinear than the indicator's (Thornhill 2005:
-   nonlinearity is strongest at the source): the cycle enters from outside the loops, named
-   by that indicator; no loop is the source, a loop called ``stiction`` follows.
+   every loop's), no loop called ``stiction`` has a nonlinear cycle (index above
+   ``NLI_OUTSIDE``: its own valve may be the source), and no loop's cycle is nonlinear or
+   the indicator's is the most nonlinear (Thornhill 2005: nonlinearity is strongest at the
+   source): the cycle enters from outside the loops, named by that indicator; no loop is
+   the source, a loop called ``stiction`` follows.
 2. **A loop's own verdict.** A loop whose own window says ``stiction`` is the source (the
    best ranked of them), unless named evidence says otherwise: a loop ranked above it leads
    its cycle (net flow at least ``FLOW_MARGIN``) and has its own evidence (a valve score of
@@ -17,10 +19,11 @@ In this order:
    (:attr:`.source.MemberEvidence.valve_named`), unless its cycle trails (net flow below 0,
    or below an indicator's).
 4. **Direction.** Else the top candidate when it leads the group (the highest net flow,
-   at least ``FLOW_LEADS``) and its cycle is nonlinear (index above 1) and the most
-   nonlinear of the loops (by ``NLI_MARGIN``, or with a net flow of ``FLOW_NAME``); or when
-   it leads by ``FLOW_NAME`` and its valve score reaches ``SOURCE_SCORE`` (whatever its
-   per-loop confidence: leading and a sticky valve that explains its PV agree).
+   at least ``FLOW_LEADS``, above every indicator's) and its cycle is nonlinear (index
+   above 1) and the most nonlinear of the loops (by ``NLI_MARGIN``, or with a net flow of
+   ``FLOW_NAME``); or when it leads by ``FLOW_NAME`` and its valve score reaches
+   ``SOURCE_SCORE`` (whatever its per-loop confidence: leading and a sticky valve that
+   explains its PV agree).
 5. Else no loop is named: none shows evidence of being the source (it may be outside the
    loops read, or not told from this data). No "enters from outside" without 1.
 
@@ -44,7 +47,8 @@ from collections.abc import Callable, Mapping, Sequence
 from .nonlinearity import NLI_NONLINEAR
 from .source import SOURCE_SCORE, MemberEvidence
 
-__all__ = ["COUPLED", "FLOW_LEADS", "FLOW_MARGIN", "HOLD_CONFIDENCE", "Decision",
+__all__ = ["COUPLED", "FLOW_LEADS", "FLOW_MARGIN", "FLOW_NAME", "HOLD_CONFIDENCE",
+           "NLI_MARGIN", "NLI_OUTSIDE", "Decision",
            "IndicatorEvidence", "decide"]
 
 FLOW_LEADS = 0.05
@@ -57,8 +61,13 @@ FLOW_NAME = 0.3
 the loops an external cycle enters first lead the others by up to 0.27 on the project's
 plants, a sticky valve's loop by 0.3-2."""
 NLI_MARGIN = 0.5
-"""A loop's cycle is more nonlinear than an indicator's when its index is higher by this
-(the index of one cycle varies by about this much from window to window)."""
+"""A cycle is the most nonlinear of a group when its index is higher than the others' by
+this (the index of one cycle varies by about this much from window to window)."""
+NLI_OUTSIDE = 1.0
+"""Thornhill's bound of a linear cycle. A loop called ``stiction`` whose cycle is above it
+keeps its call whatever an indicator shows: one read right after a sticky valve leads the
+valve's loop and is more nonlinear than it (TEP's cooling water temperatures after their
+valves: indices 5.7 against 3.3, 1.9 against 1.5)."""
 COUPLED = 0.05
 """Granger gain from the source from which a member follows it."""
 HOLD_CONFIDENCE = 0.5
@@ -96,6 +105,7 @@ def _nli(e: MemberEvidence | IndicatorEvidence | None) -> float:
 
 def _outside(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvidence]
              ) -> IndicatorEvidence | None:
+    """The indicator the cycle enters by from outside (module doc, 1), or None."""
     measured = [i for i in indicators if i.flow is not None]
     if not measured:
         return None
@@ -103,8 +113,10 @@ def _outside(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEv
     loop_flow = max((e.flow for e in ranking if e.flow is not None), default=-1e9)
     if (lead.flow or 0.0) < FLOW_LEADS or (lead.flow or 0.0) <= loop_flow:
         return None
+    if any(e.called and _nli(e) > NLI_OUTSIDE for e in ranking):
+        return None  # a loop's own call and its nonlinear cycle: its valve may be the source
     most = max((_nli(e) for e in ranking), default=-1e9)
-    return lead if most <= max(_nli(lead), NLI_NONLINEAR) + NLI_MARGIN else None
+    return lead if most <= NLI_OUTSIDE or _nli(lead) >= most else None
 
 
 def _overrides(t: MemberEvidence, s: MemberEvidence, flow: Flow,
@@ -116,13 +128,16 @@ def _overrides(t: MemberEvidence, s: MemberEvidence, flow: Flow,
     return own and flow(t.loop, s.loop) >= FLOW_MARGIN
 
 
-def _leads(top: MemberEvidence, ranking: Sequence[MemberEvidence]) -> list[str]:
+def _leads(top: MemberEvidence, ranking: Sequence[MemberEvidence],
+           indicators: Sequence[IndicatorEvidence]) -> list[str]:
     """The evidence that names ``top`` by direction (module doc, 4): it leads the group
-    (net flow at least ``FLOW_LEADS`` and the highest) and its cycle is nonlinear and the
-    most nonlinear, by ``NLI_MARGIN`` or with a net flow of ``FLOW_NAME``; or it leads by
-    ``FLOW_NAME`` and its valve score reaches ``SOURCE_SCORE``."""
+    (net flow at least ``FLOW_LEADS``, the highest, above every indicator's) and its cycle
+    is nonlinear and the most nonlinear, by ``NLI_MARGIN`` or with a net flow of
+    ``FLOW_NAME``; or it leads by ``FLOW_NAME`` and its valve score reaches
+    ``SOURCE_SCORE``."""
     flow = top.flow or 0.0
-    if flow < FLOW_LEADS or flow < max(e.flow or 0.0 for e in ranking):
+    if flow < FLOW_LEADS or flow < max(e.flow or 0.0 for e in ranking) or \
+            flow <= max((i.flow for i in indicators if i.flow is not None), default=-1e9):
         return []
     others = max((_nli(e) for e in ranking if e is not top), default=-1e9)
     if _nli(top) > NLI_NONLINEAR and _nli(top) >= others and \
@@ -164,8 +179,8 @@ def _choose(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvi
             source, named = best, ["own verdict"]
     elif top.valve_named and not _trails(top, indicators):
         source, named = top, ["own valve"]
-    elif _leads(top, ranking):
-        source, named = top, _leads(top, ranking)
+    elif _leads(top, ranking, indicators):
+        source, named = top, _leads(top, ranking, indicators)
     held = next((e for e in ranking if e.loop == previous), None)
     if held is not None and held is not source and _holds(held) and \
             (source is None or not _overrides(source, held, flow, cascades)):

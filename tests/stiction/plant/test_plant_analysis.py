@@ -93,22 +93,36 @@ def _header_read_fast() -> tuple[PlantRecord, dict[str, Assessment]]:
 
 
 def test_an_indicator_that_leads_names_where_the_cycle_enters_from_outside() -> None:
+    """The header's pressure read at once leads every loop and its square cycle is the most
+    nonlinear: the cycle enters from outside, by it. A loop the per-loop tests call
+    stiction whose own cycle is linear follows; one whose cycle is nonlinear keeps its call
+    (an indicator right after a sticky valve leads it too)."""
     rec, before = _header_read_fast()
-    called = {n: dataclasses.replace(a, verdict=Verdict.STICTION, confidence=0.9)
-              for n, a in before.items()}
-    view = analyze_plant({n: (rec.op[n], rec.pv[n]) for n in rec.op}, ts=rec.ts,
-                         indicators=rec.indicators, assessments=called,
+    called = {**before, "FIC102": dataclasses.replace(before["FIC102"],
+                                                      verdict=Verdict.STICTION,
+                                                      confidence=0.9)}
+    loops = {n: (rec.op[n], rec.pv[n]) for n in rec.op}
+    view = analyze_plant(loops, ts=rec.ts, indicators=rec.indicators, assessments=called,
                          processes=_processes(rec))
     (g,) = [g for g in view.groups if "TIC201" in g.loops]
     assert g.source is None and g.outside and g.entry == "PI_STEAM"
     assert g.named_by == ("indicator",)
     assert "enters from outside the loops: indicator PI_STEAM leads them" in g.reason
     after = view.apply(called)
-    for name in ("TIC201", "PIC401", "FIC102"):  # every loop's own call: a follower's
+    for name in ("TIC201", "PIC401", "FIC102"):
         assert view.roles[name].role == "follower"
-        assert after[name].verdict == Verdict.PROPAGATED
-        assert "indicator PI_STEAM leads its cycle" in after[name].reason
-        assert "own tests said stiction at 0.90" in after[name].reason
+    assert after["FIC102"].verdict == Verdict.PROPAGATED
+    assert "indicator PI_STEAM leads its cycle" in after["FIC102"].reason
+    assert "own tests said stiction at 0.90" in after["FIC102"].reason
+    nonlinear = max((e for e in g.ranking if e.nli is not None), key=lambda e: e.nli or 0.0)
+    assert (nonlinear.nli or 0.0) > 1.0  # the square reaches a loop nonlinear
+    called[nonlinear.loop] = dataclasses.replace(before[nonlinear.loop],
+                                                 verdict=Verdict.STICTION, confidence=0.9)
+    view = analyze_plant(loops, ts=rec.ts, indicators=rec.indicators, assessments=called,
+                         processes=_processes(rec))
+    (g,) = [g for g in view.groups if "TIC201" in g.loops]
+    assert g.entry is None and "own verdict" in g.named_by
+    assert g.source in ("FIC102", nonlinear.loop)  # a call stands: one of the two called
 
 
 def test_a_loop_called_stiction_in_a_group_is_its_source() -> None:
