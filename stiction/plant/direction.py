@@ -35,7 +35,8 @@ from scipy import signal as sp_signal
 
 from .._validate import FloatArray
 
-__all__ = ["ORDER", "band_passed", "cycle_band", "granger", "net_flow", "phase_lag"]
+__all__ = ["ORDER", "band_passed", "cycle_band", "cycle_bands", "granger", "net_flow",
+           "phase_lag"]
 
 SAMPLES_PER_CYCLE = 16
 ORDER = 8  # half a cycle of the past
@@ -48,25 +49,33 @@ def cycle_band(x: FloatArray, period: float) -> FloatArray:
     """``x`` (gaps filled) band-passed around its cycle of ``period`` samples and resampled
     to ``SAMPLES_PER_CYCLE`` a cycle: its last ``MAX_CYCLES`` cycles, unit variance. Two
     signals of one length give two series on one grid."""
-    n = x.size
-    y = band_passed(np.asarray(x, dtype=np.float64), period)
+    return np.asarray(cycle_bands(np.asarray(x, dtype=np.float64)[None, :], period)[0])
+
+
+def cycle_bands(xs: FloatArray, period: float) -> FloatArray:
+    """:func:`cycle_band` of each row of ``xs`` (one filter run over all rows)."""
+    n = xs.shape[1]
+    y = band_passed(np.asarray(xs, dtype=np.float64), period)
     start = max(0.0, n - 1 - MAX_CYCLES * period)
     grid = np.arange(n - 1.0, start, -period / SAMPLES_PER_CYCLE)[::-1]
-    z = np.interp(grid, np.arange(n), y)
-    sd = float(np.std(z))
-    return np.asarray(z / sd) if sd > 0 else np.zeros_like(z)
+    lo = np.minimum(np.floor(grid).astype(np.intp), n - 2)
+    w = grid - lo
+    z = y[:, lo] * (1.0 - w) + y[:, lo + 1] * w
+    sd = z.std(axis=1, keepdims=True)
+    return np.asarray(np.divide(z, sd, out=np.zeros_like(z), where=sd > 0))
 
 
 def band_passed(x: FloatArray, period: float) -> FloatArray:
-    """``x`` less its mean, band-passed from ``LOW`` to ``HIGH`` times its cycle's frequency
-    (capped below Nyquist): a zero-phase second-order Butterworth filter."""
+    """``x`` (or each row of it) less its mean, band-passed from ``LOW`` to ``HIGH`` times
+    its cycle's frequency (capped below Nyquist): a zero-phase second-order Butterworth
+    filter."""
     f0 = 1.0 / period
     high = min(HIGH * f0, 0.45)
-    y = x - float(np.mean(x))
+    y = x - np.mean(x, axis=-1, keepdims=True)
     if LOW * f0 >= high:
-        return y
+        return np.asarray(y)
     return np.asarray(sp_signal.sosfiltfilt(_bandpass(round(2.0 * LOW * f0, 9),
-                                                      round(2.0 * high, 9)), y))
+                                                      round(2.0 * high, 9)), y, axis=-1))
 
 
 @functools.lru_cache(maxsize=64)

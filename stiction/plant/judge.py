@@ -1,13 +1,16 @@
 """One group judged: its members, their evidence, the ranking and the source
 (:mod:`.source`, :mod:`.direction`, :mod:`.nonlinearity`, :mod:`.decide`).
 
-Direction and nonlinearity cost more than the rest (a regression per pair of signals,
-twenty surrogates per index), so they are measured for the leading candidates only: the
-``CANDIDATES`` loops with the most own evidence (verdict and valve), the ``STRONGEST``
-loops that carry the cycle most strongly and the ``INDICATORS`` indicators that do; the
-index for the ``NLI_LOOPS`` best of those after direction, and for those indicators. The
-Granger gain between the source and another member is measured when a decision needs it
-(a member called ``stiction``: does the source lead it?).
+The valve fit, direction and nonlinearity cost more than the rest (a Hammerstein search
+per loop, a regression per pair of signals, a dozen surrogates per index), so a group of
+hundreds of loops measures them for its leading candidates only: the valve of the
+``VALVE_FITS`` loops with the most own evidence (called ``stiction`` first, then by
+per-loop confidence and strength; others: no fit), direction for the ``CANDIDATES`` with
+the most own evidence (verdict and valve), the ``STRONGEST`` loops that carry the cycle
+most strongly and the ``INDICATORS`` indicators that do, the index for the ``NLI_LOOPS``
+best of those after direction and for those indicators. The Granger gain between the
+source and another member is measured when a decision needs it (a member called
+``stiction``: does the source lead it?), every member's cycle filtered in one run.
 """
 
 from __future__ import annotations
@@ -17,10 +20,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .._assessment import Assessment
+from .._assessment import Assessment, Verdict
 from .._validate import FloatArray
 from .decide import Decision, IndicatorEvidence, decide
-from .direction import cycle_band, granger, phase_lag
+from .direction import cycle_band, cycle_bands, granger, phase_lag
 from .groups import BAND, RawGroup
 from .nonlinearity import nonlinearity
 from .source import MemberEvidence, harmonics, member_evidence, rank
@@ -30,6 +33,7 @@ __all__ = ["CANDIDATES", "INDICATORS", "NLI_LOOPS", "STRONGEST", "Judged", "Sign
 
 CANDIDATES = 4
 STRONGEST = 2
+VALVE_FITS = 8
 INDICATORS = 3
 NLI_LOOPS = 3
 
@@ -74,6 +78,14 @@ class _Links:
             self._series[name] = z
         return z
 
+    def prepare(self, names: list[str]) -> None:
+        """The cycles of ``names`` at once (one filter run over all of them)."""
+        todo = [n for n in names if n not in self._series]
+        for lo in range(0, len(todo), 256):
+            part = todo[lo:lo + 256]
+            rows = self.sigs.rows[[self.row[n] for n in part]]
+            self._series.update(zip(part, cycle_bands(rows, self.period), strict=True))
+
     def granger(self, a: str, b: str) -> float:
         g = self._gain.get((a, b))
         if g is None:
@@ -99,10 +111,24 @@ def _members(g: RawGroup, sigs: Signals) -> tuple[list[tuple[str, str, float]], 
     return [(nm, kinds[nm], strength[nm]) for nm in names], row
 
 
+def _fitted(members: list[tuple[str, str, float]], assessments: Mapping[str, Assessment]
+            ) -> set[str]:
+    """The loops whose valve is fitted: the ``VALVE_FITS`` with the most own evidence
+    (called ``stiction`` first, then by per-loop confidence, then by strength)."""
+    def key(m: tuple[str, str, float]) -> tuple[bool, float, float]:
+        a = assessments.get(m[0])
+        return (a is not None and a.verdict == Verdict.STICTION,
+                (a.confidence or 0.0) if a is not None else 0.0, m[2])
+
+    loops = [m for m in members if m[1] == "loop"]
+    return {m[0] for m in sorted(loops, key=key, reverse=True)[:VALVE_FITS]}
+
+
 def _evidence(members: list[tuple[str, str, float]], row: dict[str, int], g: RawGroup,
               sigs: Signals, *, assessments: Mapping[str, Assessment],
               processes: Mapping[str, str]) -> list[MemberEvidence]:
     f0 = 1.0 / g.period
+    fit = _fitted(members, assessments)
     out = []
     for name, kind, strength in members:
         if kind != "loop":
@@ -114,7 +140,7 @@ def _evidence(members: list[tuple[str, str, float]], row: dict[str, int], g: Raw
             name, sigs.rows[2 * k], sigs.rows[2 * k + 1], ts=sigs.ts, period=g.period,
             integrating=processes.get(name) == "integrating", strength=strength,
             assessment=assessments.get(name), harmonic=harmonic,
-            signal="op" if row[name] == 2 * k else "pv"))
+            signal="op" if row[name] == 2 * k else "pv", fit=name in fit))
     return out
 
 
@@ -161,6 +187,7 @@ def judge(g: RawGroup, sigs: Signals, *, assessments: Mapping[str, Assessment],
     evidence = _evidence(members, row, g, sigs, assessments=assessments, processes=processes)
     indicators = [IndicatorEvidence(nm, s) for nm, kind, s in members if kind != "loop"]
     links = _Links(sigs, g.period, row)
+    links.prepare([e.loop for e in evidence if e.called or e.valve_named])
     evidence, indicators = _measured(evidence, indicators, links, row=row, period=g.period)
     ranking = rank(evidence, dict(cascades))
     decision = decide(ranking, indicators, links.flow, links.granger, cascades=cascades,

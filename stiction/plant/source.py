@@ -148,12 +148,15 @@ def harmonics(spec: Spectra, row: int, f0: float, width: float) -> float:
 
 def member_evidence(loop: str, op: FloatArray, pv: FloatArray, *, ts: float, period: float,
                     integrating: bool, strength: float, assessment: Assessment | None,
-                    harmonic: float, signal: str = "pv") -> MemberEvidence:
+                    harmonic: float, signal: str = "pv", fit: bool = True) -> MemberEvidence:
     """The own evidence of one member loop at its group's ``period`` (samples): its valve
-    and its verdict (direction and nonlinearity are added for the leading candidates)."""
-    fit = hammerstein_test(op, pv, ts=ts, period=period, integrating=integrating)
-    gain = None if fit.stats is None or not math.isfinite(fit.stats.level_process) \
-        else float(fit.stats.level_process)
+    (``fit``: the Hammerstein fit too) and its verdict (direction and nonlinearity are
+    added for the leading candidates)."""
+    gain = None
+    if fit:
+        res = hammerstein_test(op, pv, ts=ts, period=period, integrating=integrating)
+        if res.stats is not None and math.isfinite(res.stats.level_process):
+            gain = float(res.stats.level_process)
     conf = None if assessment is None else assessment.confidence
     verdict = None if assessment is None else str(assessment.verdict)
     values = {} if assessment is None else {e.test: e.value for e in assessment.evidence}
