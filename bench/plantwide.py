@@ -10,8 +10,9 @@ bench/_plantwide_data.py):
   (an aggressively tuned loop feeding others), ``quiet`` (loads only); 4 h, at the
   gateway's sampling (4 s) and resampled as a historian exports them (10, 20 and 60 s).
   Development seeds (the thresholds of stiction.plant were set on them) and held-out
-  seeds, reported apart. A sticky valve counts for "named" when its cycle is visible and
-  reaches another loop in that view (:func:`reaches`).
+  seeds, reported apart. A sticky valve counts for "named" when its cycle is resolved
+  (at least 4 samples a period: at 60 s a two-minute cycle is not, and is counted apart),
+  visible, and reaches another loop in that view (:func:`reaches`).
 - **TEP plant runs** (``bench/corpus.py``'s ``load_plant_runs``, when the corpus is built):
   the XMV loops and XMEAS indicators of each revised Tennessee Eastman run, 24 h at 36 s.
 
@@ -42,7 +43,7 @@ from stiction import Assessment, Verdict
 from stiction.cli.plantout import as_json, text_lines
 from stiction.plant import Group, PlantAssessment, analyze_plant
 from stiction.plant.groups import BAND
-from stiction.plant.spectra import MIN_CYCLES, spectra
+from stiction.plant.spectra import MIN_CYCLES, MIN_PERIOD, spectra
 from stiction.scenarios.plant import PlantRecord
 from stiction.scenarios.plants import PLANT_KINDS
 from stiction.signal.oscillation import detect_oscillation
@@ -54,16 +55,25 @@ VISIBLE = 0.05  # ... and the share of the signal's power in the cycle's band
 SOURCE_KINDS = ("sticky", "cascade", "two")
 
 
+def too_fast(rec: PlantRecord, loop: str) -> bool:
+    """Does the sticky valve of ``loop`` cycle faster than ``MIN_PERIOD`` samples (a cycle
+    of two or three samples a period, which no analysis resolves at this sampling)?"""
+    vp = rec.vp[loop]
+    o = detect_oscillation(vp - vp.mean())
+    return o.period is not None and o.period < MIN_PERIOD
+
+
 def reaches(rec: PlantRecord, loop: str) -> bool:
     """Does the sticky valve of ``loop`` cycle regularly, at least ``MIN_CYCLES`` times in
-    the window, visibly (its loop's OP or PV oscillates regularly at that period) and does
-    its cycle visibly reach another loop (OP or PV coherent with the valve's position at the
-    cycle's frequency, at least ``REACH``, with at least ``VISIBLE`` of its power in the
-    cycle's band)? The truth, from the valve position no analysis sees."""
+    the window, resolved (a period of at least ``MIN_PERIOD`` samples), visibly (its loop's
+    OP or PV oscillates regularly at that period) and does its cycle visibly reach another
+    loop (OP or PV coherent with the valve's position at the cycle's frequency, at least
+    ``REACH``, with at least ``VISIBLE`` of its power in the cycle's band)? The truth, from
+    the valve position no analysis sees."""
     vp = rec.vp[loop]
     o = detect_oscillation(vp - vp.mean())
     if not (o.oscillating and o.regularity > 1.0 and o.period is not None
-            and vp.size / o.period >= MIN_CYCLES):
+            and vp.size / o.period >= MIN_CYCLES and o.period >= MIN_PERIOD):
         return False
     own = [detect_oscillation(x - x.mean()) for x in (rec.op[loop], rec.pv[loop])]
     if not any(w.oscillating and w.period is not None and abs(w.period / o.period - 1.0) <= BAND
@@ -119,6 +129,7 @@ def score(kind: str, rec: PlantRecord, before: dict[str, Assessment],
     if kind in SOURCE_KINDS:
         for src in sources:
             if not reaches(rec, src):
+                c["too fast to see"] += too_fast(rec, src)
                 continue
             c["reach"] += 1
             g = group_of(view_, src)
@@ -166,6 +177,10 @@ def report(totals: dict[str, Any]) -> None:
               f"{c['others called before']:6d} -> {c['others called after']:<6d}"
               f"{'':10s}{c['follower and stiction']:<18d} {c['valve source named']}")
     ext = totals.get("external", collections.Counter())
+    fast = sum(c["too fast to see"] for c in totals.values())
+    if fast:
+        print(f"  sticky valves cycling faster than {MIN_PERIOD:g} samples a period (not "
+              f"resolved at this sampling, not counted in reach): {fast}")
     print(f"  external cycles reported without a loop source (>= 90 %): "
           f"{_pct(ext['no loop source'], ext['external groups'])}, by an indicator "
           f"{ext['by an indicator']}; a wrong loop named the source: "

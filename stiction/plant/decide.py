@@ -27,11 +27,13 @@ In this order:
 5. Else no loop is named: none shows evidence of being the source (it may be outside the
    loops read, or not told from this data). No "enters from outside" without 1.
 
-Every other member whose own verdict is ``stiction`` (or whose valve names it) is led by
-the source (Granger gain from the source at least ``COUPLED`` and net flow from it
-positive): a follower, its reason naming that evidence; or it is not: a source of its own
-(two sticky valves at one period). A declared cascade's outer loop is never a source of its
-own, nor taken from its inner loop.
+A called outer loop of a declared cascade whose inner loop is a member speaks for the inner
+loop's valve (its "valve" is the inner loop): in 2 the inner loop takes its place, and the
+outer loop follows. Every other member whose own verdict is ``stiction`` (or whose valve
+names it) is led by the source (Granger gain from the source at least ``COUPLED`` and net
+flow from it positive): a follower, its reason naming that evidence; or it is not: a source
+of its own (two sticky valves at one period). A declared cascade's outer loop is never a
+source of its own, nor taken from its inner loop.
 
 Hysteresis (the gateway's successive rounds): a source named last round stays the source
 while it is a member, still has evidence of its own at a lower bar (called ``stiction``, a
@@ -165,7 +167,10 @@ def _choose(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvi
             ) -> tuple[MemberEvidence | None, list[str], str | None]:
     """(source, named_by, the called loop it overrides)."""
     top = ranking[0]
-    called = [e for e in ranking if e.called]
+    by_name = {e.loop: e for e in ranking}
+    # a called outer loop of a cascade speaks for its inner loop's valve, when that is here
+    called = list(dict.fromkeys(by_name.get(cascades.get(e.loop, ""), e) for e in ranking
+                                if e.called))
     source: MemberEvidence | None = None
     named: list[str] = []
     over: str | None = None
@@ -176,7 +181,9 @@ def _choose(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvi
             named = ["own valve"] if top.valve >= SOURCE_SCORE else ["nonlinearity"]
             named.append("direction")
         else:
-            source, named = best, ["own verdict"]
+            source = best
+            named = ["own verdict"] if best.called else \
+                ["own verdict of its cascade's outer loop"]
     elif top.valve_named and not _trails(top, indicators):
         source, named = top, ["own valve"]
     elif _leads(top, ranking, indicators):
@@ -213,6 +220,10 @@ def decide(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvid
     also: list[str] = []
     for e in ranking:
         if source is None or e is source or not (e.called or e.valve_named):
+            continue
+        if cascades.get(e.loop) == source.loop:
+            demoted[e.loop] = (f"its valve is {source.loop}'s: the outer loop of a cascade whose "
+                               "inner loop is the source")
             continue
         led = granger(source.loop, e.loop)
         net = flow(source.loop, e.loop)
