@@ -56,6 +56,7 @@ def add_plant(sub: Subparsers) -> None:
     p.add_argument("--unit-prefix", action="store_true",
                    help="each tag's unit is the text before its first '.', '/' or ':' "
                    "(U1.FIC101 is in unit U1)")
+    historian.add_reading_options(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", type=Path, default=None,
                    help="draw the spectral map (loops x frequency, the groups marked) to FILE")
@@ -80,7 +81,7 @@ def loop_columns(header: list[str]) -> tuple[dict[str, tuple[int, int]], dict[st
 
 def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, np.ndarray]],
                                              dict[str, np.ndarray], list[str]]:
-    table = historian.read_table(args.file)
+    table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     notes = list(table.notes)
     if args.time is not None:
         t_col: int | None = historian.column(table, args.time, "--time")
