@@ -31,7 +31,8 @@ cli         all of the above
 ==========  ===============================================================================
 
 ``stiction`` never imports ``gateway`` or ``plcsim``; ``plcsim`` uses the gateway's config
-schema, errors, wire and runtime only; nothing in ``gateway`` imports ``plcsim``.
+schema, errors, wire and runtime only; nothing in ``gateway`` imports ``plcsim``. Within a
+room no modules import each other in a circle (not even for a type under TYPE_CHECKING).
 The rules are checked on a few wrong modules first, so the test is seen to fail.
 """
 
@@ -176,6 +177,51 @@ def violations(modules: Mapping[str, str]) -> list[str]:
     return found
 
 
+def circles(modules: Mapping[str, str]) -> list[list[str]]:
+    """Sets of modules that import each other in a circle (Tarjan's strongly connected
+    components of the import graph, iteratively), each sorted."""
+    known = set(modules)
+    graph = {m: sorted({t for t, _ in imports(m, text, known) if t in known and t != m})
+             for m, text in modules.items()}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    found = []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, 0)]
+        while work:
+            v, k = work.pop()
+            if k == 0:
+                index[v] = low[v] = len(index)
+                stack.append(v)
+                on.add(v)
+            if k < len(graph[v]):
+                work.append((v, k + 1))
+                w = graph[v][k]
+                if w not in index:
+                    work.append((w, 0))
+                elif w in on:
+                    low[v] = min(low[v], index[w])
+                continue
+            if work:
+                parent = work[-1][0]
+                low[parent] = min(low[parent], low[v])
+            if low[v] == index[v]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on.discard(w)
+                    comp.append(w)
+                    if w == v:
+                        break
+                if len(comp) > 1:
+                    found.append(sorted(comp))
+    return found
+
+
 SOURCES = sources()
 
 
@@ -241,3 +287,14 @@ def test_lazy_and_lower_imports_are_allowed() -> None:
                                                 "from ...core import points\n")
     modules["plcsim.demo"] = "from gateway.runtime.gateway import Gateway\n"
     assert violations(modules) == []
+
+
+def test_no_modules_import_each_other_in_a_circle() -> None:
+    assert circles(SOURCES) == []
+
+
+def test_a_circle_is_caught() -> None:
+    modules = dict(SOURCES)
+    modules["gateway.core.points"] += "\nfrom .ticks import TickGrid\n"
+    modules["gateway.core.ticks"] += "\nif TYPE_CHECKING:\n    from .points import Quality\n"
+    assert ["gateway.core.points", "gateway.core.ticks"] in circles(modules)
