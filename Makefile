@@ -47,10 +47,10 @@ $(BENCH_STAMP): $(STAMP)
 bench: $(BENCH_STAMP)
 	$(BIN)/python -m bench
 
-# the development corpus (bench/corpus.py): builds what bench/.cache/corpus lacks, then
+# the development corpus (lab/labels/corpus.py): builds what lab/.cache/corpus lacks, then
 # prints its summary; the first build takes about an hour of one core
 corpus: $(BENCH_STAMP)
-	$(BIN)/python -m bench corpus
+	$(BIN)/python -m lab corpus
 
 soak: $(STAMP)
 	$(BIN)/python -m bench.soak

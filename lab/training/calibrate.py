@@ -21,24 +21,23 @@ sticky records are one valve). Scores are cross-validated by group, never by rec
 folds of groups, and leave-one-data-set-out (fit on two, score the third), which is the
 nearest we have to loops from elsewhere.
 
-``python -m bench calibrate`` prints the held-out folds; ``python -m bench.calibrate
---write`` also rewrites ``stiction/diagnosis/weights.py`` from the fit on all data.
+``python -m lab calibrate`` prints the held-out folds; ``python -m lab calibrate --write``
+also rewrites ``stiction/diagnosis/weights.py`` from the fit on all data
+(lab/export/weights.py).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import sys
-import time
-from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 from scipy import optimize
 
-from bench.real_data import AMBIGUOUS, Case, plant_cases, sim_cases, tep_cases
 from stiction.diagnosis.combine import group_votes
 from stiction.diagnosis.evidence import TESTS, gather_for_calibration
+
+from ..sources.realistic import AMBIGUOUS, sim_cases
+from ..sources.records import Case, plant_cases, tep_cases
 
 GROUP_NAMES = tuple(group_votes(TESTS, [0] * len(TESTS)))
 
@@ -47,7 +46,6 @@ PRIOR = 1.0
 DATASET_WEIGHT = {"plant": 0.4, "tep": 0.4, "sim": 0.2}
 """Real loops first: a rule that only holds on our own simulator is a defect, so the
 simulations weigh half as much as each real data set."""
-WEIGHTS_FILE = Path(__file__).resolve().parents[1] / "stiction" / "diagnosis" / "weights.py"
 FOLDS = 5
 
 
@@ -149,42 +147,3 @@ def cross_validate(t: Table, hi: float) -> None:
         m = np.array([c.dataset == ds for c in t.cases])
         beta = fit(t.subset(~m))
         print(f"    {ds:<5}: {_score(t.subset(m), confidence(beta, t.votes[m]), hi)}")
-
-
-def write_weights(beta: np.ndarray, tests: Sequence[str]) -> None:
-    k = len(tests)
-    lines = [
-        '"""Weights of the tests\' votes (written by ``python -m bench calibrate --write``;',
-        "see bench/calibrate.py for the data and the fit). Do not edit by hand.\"\"\"",
-        "",
-        f"BIAS = {beta[0]:.4f}",
-        "FOR = {  # added when the test votes +1 (says stiction)",
-        *(f'    "{name}": {beta[1 + i]:.4f},' for i, name in enumerate(tests)),
-        "}",
-        "AGAINST = {  # subtracted when the test votes -1 (says not stiction)",
-        *(f'    "{name}": {beta[1 + k + i]:.4f},' for i, name in enumerate(tests)),
-        "}",
-        "",
-    ]
-    WEIGHTS_FILE.write_text("\n".join(lines))
-
-
-def main(argv: Sequence[str] = ()) -> None:
-    t0 = time.perf_counter()
-    t = load()
-    print(f"== calibration: {len(t.cases)} windows, test groups {', '.join(GROUP_NAMES)} "
-          f"({time.perf_counter() - t0:.0f} s to gather) ==")
-    from stiction.diagnosis.combine import STICTION_CONFIDENCE  # noqa: PLC0415
-    cross_validate(t, STICTION_CONFIDENCE)
-    beta = fit(t)
-    print(f"  fit on all data: bias {beta[0]:+.2f}; per test (+vote weight / -vote weight):")
-    k = len(GROUP_NAMES)
-    for i, name in enumerate(GROUP_NAMES):
-        print(f"    {name:<14} {beta[1 + i]:5.2f} / {beta[1 + k + i]:5.2f}")
-    if "--write" in argv:
-        write_weights(beta, GROUP_NAMES)
-        print(f"  wrote {WEIGHTS_FILE}")
-
-
-if __name__ == "__main__":
-    main(sys.argv[1:])

@@ -1,17 +1,18 @@
 """The development corpus (issues 24 and 21): labelled loop windows and multi-loop plant runs
 to learn the stiction decision from and to measure it and the plant-wide analysis on.
 
-``python -m bench corpus`` (``make corpus``) builds what ``bench/.cache/corpus`` lacks (one
+``python -m lab corpus`` (``make corpus``) builds what ``lab/.cache/corpus`` lacks (one
 process; a Tennessee Eastman run and each realistic set are cached as soon as made, so an
-interrupted build resumes) and prints windows per source and cause class. Everything is
-seeded: the same code and tep-studio build the same corpus. ``load_windows()`` and
-``load_plant_runs()`` read the cache (no tep-studio needed); docs/corpus.md describes it.
+interrupted build resumes; lab/_cache.py says where an older checkout's corpus is found)
+and prints windows per source and cause class. Everything is seeded: the same code and
+tep-studio build the same corpus. ``load_windows()`` and ``load_plant_runs()`` read the
+cache (no tep-studio needed); docs/corpus.md describes it.
 
-Sources (the fold keys of :data:`bench._corpus_types.SOURCES`):
+Sources (the fold keys of :data:`lab._types.SOURCES`):
 
 - ``tep-mode1`` .. ``tep-mode6``: tep-studio's revised Tennessee Eastman model under
-  Ricker's decentralised control (bench/_tep.py), the runs of bench/_corpus_plan.py: normal
-  operation, each disturbance alone at 2 of 3 magnitudes, pairs, the sticky valves
+  Ricker's decentralised control (lab/sources/tep.py), the runs of lab/sources/tep_plan.py:
+  normal operation, each disturbance alone at 2 of 3 magnitudes, pairs, the sticky valves
   (IDV 14, 15, 19) at 0.5-12 % bands. A run continues its mode's settled state (36 h of
   normal operation); disturbances start 0.5 h in; the first 4 h after the onset are
   skipped, the next 24 h kept. Each loop whose output is a valve (9 of them) gives:
@@ -30,8 +31,9 @@ Sources (the fold keys of :data:`bench._corpus_types.SOURCES`):
   per simulation (its two loops).
 - ``cases``: the single cases of ../shared/data/cases whose right answer is stated.
 
-Labels: bench/_corpus_label.py (a sticky valve's loop by what its valve did in the window;
-every other loop against its mode's normal runs).
+Labels: lab/labels/rules.py (a sticky valve's loop by what its valve did in the window;
+every other loop against its mode's normal runs); the windows are cut in
+lab/windows/tep.py.
 """
 
 from __future__ import annotations
@@ -41,24 +43,26 @@ import time
 from collections.abc import Iterable
 from pathlib import Path
 
-from . import _corpus_plan, _corpus_sources, _corpus_tep
-from ._corpus_types import CAUSE_CLASSES, SOURCES, PlantRun, Window, counts, folds
-from ._corpus_windows import tep_records
+from .. import _cache
+from .._types import CAUSE_CLASSES, SOURCES, PlantRun, Window, counts, folds
+from ..sources import realistic, records, tep_plan
+from ..windows import tep
+from .tep import tep_records
 
-CACHE = Path(__file__).resolve().parent / ".cache" / "corpus"
-
-__all__ = ["CACHE", "SOURCES", "PlantRun", "Window", "folds", "load_plant_runs",
-           "load_windows", "main"]
+__all__ = ["SOURCES", "PlantRun", "Window", "folds", "load_plant_runs", "load_windows",
+           "main"]
 
 
 def _tep(cache: Path) -> tuple[list[Window], list[PlantRun]]:
-    return tep_records(_corpus_tep.load(_corpus_plan.plan(), cache / "tep"))
+    return tep_records(tep.load(tep_plan.plan(), cache / "tep"))
 
 
 def load_windows(sources: Iterable[str] | None = None, views: Iterable[str] | None = None,
-                 cache: Path = CACHE) -> list[Window]:
-    """Every window of the corpus (of ``sources`` and ``views`` if given); the TEP and
-    realistic parts as far as built (run ``python -m bench corpus`` first)."""
+                 cache: Path | None = None) -> list[Window]:
+    """Every window of the corpus (of ``sources`` and ``views`` if given) in ``cache`` (the
+    built corpus's folder if None); the TEP and realistic parts as far as built (run
+    ``python -m lab corpus`` first)."""
+    cache = _cache.corpus() if cache is None else cache
     want = set(SOURCES if sources is None else sources)
     unknown = want - set(SOURCES)
     if unknown:
@@ -67,37 +71,39 @@ def load_windows(sources: Iterable[str] | None = None, views: Iterable[str] | No
     if any(s.startswith("tep-mode") for s in want):
         out += [w for w in _tep(cache)[0] if w.source in want]
     if "realistic" in want:
-        out += _corpus_sources.realistic_windows(cache / "realistic")
+        out += realistic.realistic_windows(cache / "realistic")
     if "plant" in want:
-        out += _corpus_sources.plant_windows()
+        out += records.plant_windows()
     if "tep-shared" in want:
-        out += _corpus_sources.shared_tep_windows()
+        out += records.shared_tep_windows()
     if "cases" in want:
-        out += _corpus_sources.case_windows()
+        out += records.case_windows()
     if views is not None:
         keep = set(views)
         out = [w for w in out if w.view in keep]
     return out
 
 
-def load_plant_runs(sources: Iterable[str] | None = None, cache: Path = CACHE
+def load_plant_runs(sources: Iterable[str] | None = None, cache: Path | None = None
                     ) -> list[PlantRun]:
     """Every multi-loop run: the TEP runs (9 loops at 36 s, the other XMEAS as indicators)
     and the shared TEP runs (2 loops, no indicators)."""
+    cache = _cache.corpus() if cache is None else cache
     want = set(SOURCES if sources is None else sources)
     out = [r for r in _tep(cache)[1] if r.source in want] \
         if any(s.startswith("tep-mode") for s in want) else []
     if "tep-shared" in want:
-        out += _corpus_sources.shared_tep_plant_runs(_corpus_sources.shared_tep_windows())
+        out += records.shared_tep_plant_runs(records.shared_tep_windows())
     return out
 
 
-def build(cache: Path = CACHE) -> None:
+def build(cache: Path | None = None) -> None:
+    cache = _cache.corpus() if cache is None else cache
     t0, c0 = time.perf_counter(), time.process_time()
     print(f"corpus: building what {cache} lacks")
-    done = _corpus_tep.build(_corpus_plan.plan(), cache / "tep", print)
+    done = tep.build(tep_plan.plan(), cache / "tep", print)
     print(f"  Tennessee Eastman: {done} runs simulated")
-    done = _corpus_sources.build_realistic(cache / "realistic", print)
+    done = realistic.build_realistic(cache / "realistic", print)
     print(f"  realistic: {done} sets drawn")
     print(f"  built in {time.perf_counter() - t0:.0f} s ({time.process_time() - c0:.0f} s CPU)")
 
@@ -130,7 +136,3 @@ def main() -> None:
     plant_runs = load_plant_runs()
     summary(windows, plant_runs)
     print(f"(corpus: {time.perf_counter() - t0:.0f} s)")
-
-
-if __name__ == "__main__":
-    main()

@@ -1,9 +1,9 @@
 """Train the decision (issue 24): boosted shallow trees over every test's vote, value and the
 unit-free numbers behind them, what the gates measured and the shape of OP and PV
 (stiction.diagnosis.features), on the development corpus, validated leave one source out;
-``python -m bench.train --write`` writes stiction/diagnosis/model.json.
+``python -m lab train --write`` writes stiction/diagnosis/model.json.
 
-Data: ``bench.corpus.load_windows()`` (build it with ``python -m bench corpus``). A window's
+Data: ``lab.labels.corpus.load_windows()`` (build it with ``python -m lab corpus``). A window's
 label is its cause class: ``stiction`` (a sticky valve that stuck and slipped in the window)
 against every class of a good valve; ``stiction-stuck`` and ``stiction-masked`` (a sticky
 valve that hardly moved in the window) and ``ramp-load`` (a load OP and PV cannot tell from
@@ -15,7 +15,7 @@ the same, so no source's size or prior decides the fit.
 
 Validation: leave one source out (each TEP operating mode, the realistic simulations, the
 plant records, the shared TEP runs, the cases, the named loops of
-bench/_train_scenarios.py). For each setting of ``SETTINGS``, every fold's held-out scores;
+lab/sources/scenarios.py). For each setting of ``SETTINGS``, every fold's held-out scores;
 thresholds: ``stiction_at`` the score at which the held-out calls of all folds together
 have the best F-beta (``BETA`` 0.5: precision weighs twice; each fold's precision there is
 reported),
@@ -36,8 +36,6 @@ import collections
 import dataclasses
 import hashlib
 import json
-import pickle
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -51,9 +49,10 @@ from stiction.diagnosis.analyze import analyze_details
 from stiction.diagnosis.features import NAMES, TEST_OF, features
 from stiction.diagnosis.model import Model
 
-from . import _train_scenarios
+from .. import _cache
+from ..labels.corpus import load_windows
+from ..sources import scenarios
 
-CACHE = Path(__file__).resolve().parent / ".cache"
 MODEL = Path(stiction.__file__).resolve().parent / "diagnosis" / "model.json"
 TESTS = tuple(dict.fromkeys(TEST_OF[n] for n in NAMES if n.endswith(".vote")))
 INDEX = {n: i for i, n in enumerate(NAMES)}
@@ -93,15 +92,14 @@ def _code_key() -> str:
 def _rows_path(windows: Sequence[Any]) -> Path:
     """Where :func:`rows` caches the analysed windows: by stiction/'s code and the keys."""
     keys = hashlib.sha256("".join(w.key for w in windows).encode()).hexdigest()[:16]
-    return CACHE / f"train-{_code_key()}-{keys}.pickle"
+    return _cache.root() / f"train-{_code_key()}-{keys}.pickle"
 
 
 def rows(windows: Sequence[Any]) -> list[Row]:
     """Every window analysed (cached by the code of stiction/ and the windows' keys)."""
     path = _rows_path(windows)
     if path.exists():
-        with path.open("rb") as fh:
-            return [Row(*t) for t in pickle.load(fh)]
+        return [Row(*t) for t in _cache.load(path)]
     out = []
     for w in windows:
         d = analyze_details(w.op, w.pv, ts=w.ts, process=w.process)
@@ -112,9 +110,7 @@ def rows(windows: Sequence[Any]) -> list[Row]:
                          integrating=w.process == "integrating")
         out.append(Row(w.source, w.run, w.cause, w.cause_class, w.view, x,
                        str(d.assessment.verdict), d.assessment.confidence))
-    CACHE.mkdir(exist_ok=True)
-    with path.open("wb") as fh:
-        pickle.dump([dataclasses.astuple(r) for r in out], fh)
+    _cache.dump([dataclasses.astuple(r) for r in out], path)
     return out
 
 
@@ -128,9 +124,7 @@ def vote(x: np.ndarray) -> float:
 def cached_rows() -> list[Row] | None:
     """The rows of the built corpus if :func:`rows` has cached them for today's code, else
     None (nothing is analysed)."""
-    from bench.corpus import load_windows  # noqa: PLC0415  (the built corpus)
-
-    windows = load_windows() + _train_scenarios.windows(CACHE / "corpus")
+    windows = load_windows() + scenarios.windows(_cache.corpus())
     if not windows:
         return None
     return rows(windows) if _rows_path(windows).exists() else None
@@ -284,7 +278,7 @@ def train(rs: Sequence[Row]) -> tuple[dict[str, Any], dict[int, float]]:
     clf = fit(x, y, w, setting)
     meta = {"setting": setting, "windows": len(idx), "sticky": int(y.sum()),
             "worst_fold_found": round(worst, 3), "trained": time.strftime("%Y-%m-%d"),
-            "by": "python -m bench.train --write (bench/train.py)"}
+            "by": "python -m lab train --write (lab/)"}
     data = export(clf, hi, lo, meta)
     model = Model.from_dict(data)
     mine = np.array([model.probability(v) for v in x[:500]])
@@ -338,12 +332,10 @@ def report(rs: Sequence[Row], p: dict[int, float], hi: float) -> None:
 
 def main(argv: Sequence[str] | None = None) -> None:
     args = list(argv or [])
-    from bench.corpus import load_windows  # noqa: PLC0415  (the built corpus)
-
     t0 = time.perf_counter()
-    windows = load_windows() + _train_scenarios.windows(CACHE / "corpus")
+    windows = load_windows() + scenarios.windows(_cache.corpus())
     if not windows:
-        print("train: the corpus is empty: run python -m bench corpus first")
+        print("train: the corpus is empty: run python -m lab corpus first")
         return
     rs = rows(windows)
     print(f"== train: {len(rs)} windows ({time.perf_counter() - t0:.0f} s to load and "
@@ -353,7 +345,3 @@ def main(argv: Sequence[str] | None = None) -> None:
     if "--write" in args:
         MODEL.write_text(json.dumps(data, separators=(",", ":")) + "\n")
         print(f"wrote {MODEL} ({data['meta']})")
-
-
-if __name__ == "__main__":
-    main(sys.argv[1:])
