@@ -274,7 +274,8 @@ def main() -> None:
 
 def corpus() -> None:
     """Per source and cause: the vote beside the learned decision (the module doc)."""
-    from lab.training.fit import cached_rows, vote  # noqa: PLC0415  (the built corpus's rows)
+    from lab.features.rows import cached_rows  # noqa: PLC0415  (the built corpus's rows)
+    from lab.training.report import vote  # noqa: PLC0415
 
     rows = cached_rows()
     if rows is None:

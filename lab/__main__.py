@@ -23,9 +23,26 @@ def corpus(argv: Sequence[str] = ()) -> None:
 
 def train(argv: Sequence[str] = ()) -> None:
     """Train on the corpus and the named scenarios, print the held-out validation."""
-    from .training import fit
+    from stiction.diagnosis.features import NAMES
 
-    fit.main(argv)
+    from .export import model
+    from .features.rows import rows, training_windows
+    from .training import fit, report
+
+    t0 = time.perf_counter()
+    windows = training_windows()
+    if not windows:
+        print("train: the corpus is empty: run python -m lab corpus first")
+        return
+    rs = rows(windows)
+    print(f"== train: {len(rs)} windows ({time.perf_counter() - t0:.0f} s to load and "
+          f"analyse), {len(NAMES)} features ==")
+    fitted = fit.train(rs)
+    data = model.model_data(fitted)
+    report.report(rs, fitted.held_out, fitted.stiction_at)
+    if "--write" in argv:
+        model.write(data)
+        print(f"wrote {model.MODEL} ({data['meta']})")
 
 
 def calibrate(argv: Sequence[str] = ()) -> None:
