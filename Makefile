@@ -29,16 +29,16 @@ demo: $(STAMP)
 	$(BIN)/stiction-gateway demo $(DEMO_ARGS)
 
 test: $(STAMP)
-	$(BIN)/ruff check stiction gateway plcsim tests bench
-	$(BIN)/mypy stiction gateway plcsim
+	$(BIN)/ruff check stiction gateway plcsim lab tests bench
+	$(BIN)/mypy stiction gateway plcsim lab
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not timing"
 	$(BIN)/python -m pytest -q -m timing
 
 lint: $(STAMP)
-	$(BIN)/ruff check stiction gateway plcsim tests bench
+	$(BIN)/ruff check stiction gateway plcsim lab tests bench
 
 typecheck: $(STAMP)
-	$(BIN)/mypy stiction gateway plcsim
+	$(BIN)/mypy stiction gateway plcsim lab
 
 $(BENCH_STAMP): $(STAMP)
 	$(BIN)/pip install --quiet --constraint $(LOCK) -e '.[dev,plot,bench]'
