@@ -19,6 +19,7 @@ training   the fit, the folds, the thresholds (``fit``), the reports (``report``
            weighted vote's calibration (``calibrate``)
 export     model.json (``model``: written and checked against scikit-learn) and
            weights.py (``weights``)
-commands   ``python -m lab corpus | train [--write] | calibrate [--write]`` (``__main__``)
+commands   ``python -m lab corpus | train [--write] | calibrate [--write]`` (``commands``,
+           run by ``__main__``)
 =========  ================================================================================
 """

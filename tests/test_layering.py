@@ -40,7 +40,7 @@ labels      windows, sources                  (each window's cause class; the co
 features    labels and everything below it    (the rows the decision reads)
 training    features and everything below it  (the fit, the folds, the thresholds, reports)
 export      training and everything below it  (model.json, weights.py)
-__main__    all of the above                  (python -m lab)
+commands    all of the above                  (python -m lab NAME; __main__ runs them)
 ==========  ===============================================================================
 
 ``stiction`` never imports ``gateway`` or ``plcsim``; ``plcsim`` uses the gateway's config
@@ -93,7 +93,8 @@ STICTION_BELOW["cli"] = set(STICTION_BELOW) - {"cli"}
 STICTION_BELOW[""] = STICTION_BELOW["cli"]  # stiction/__init__: the public API
 PLUGIN_ROOMS = ("inputs", "outputs")  # one folder per protocol / sink, plus base.py
 LAB_GROUND = {"_types", "_cache"}
-LAB_ROOMS = ("sources", "windows", "labels", "features", "training", "export", "__main__")
+LAB_ROOMS = ("sources", "windows", "labels", "features", "training", "export", "commands",
+             "__main__")
 MAY_IMPORT = {"stiction": {"stiction"}, "gateway": {"gateway", "stiction"},
               "plcsim": {"plcsim", "gateway", "stiction"}, "lab": {"lab", "stiction"},
               "bench": set(PACKAGES)}
@@ -350,7 +351,7 @@ def test_the_rooms_import_only_downward() -> None:
      "lab/features may not import lab/export"),
     ("lab.training.fit", "if TYPE_CHECKING:\n    from ..export.model import BY\n",
      "lab/training may not import lab/export"),
-    ("lab.export.model", "from .. import __main__", "lab/export may not import lab/__main__"),
+    ("lab.export.model", "from .. import commands", "lab/export may not import lab/commands"),
 ])
 def test_a_module_importing_upward_is_caught(module: str, text: str, why: str) -> None:
     modules = dict(SOURCES)
