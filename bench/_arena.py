@@ -100,14 +100,16 @@ def gateway_config(path: Path, plc_port: int, *, state: Path, loops: int = LOOPS
     return ports
 
 
-def start_gateway(tree: Path, config: Path, log: Path) -> subprocess.Popen[bytes]:
-    """``stiction-gateway run`` of ``tree`` with the unit's open-files limit."""
+def start_gateway(tree: Path, config: Path, log: Path, env: dict[str, str] | None = None
+                  ) -> subprocess.Popen[bytes]:
+    """``stiction-gateway run`` of ``tree`` with the unit's open-files limit (and ``env``
+    added to this process's environment)."""
     nofile = unit_nofile()
 
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, nofile))
 
-    env = {**os.environ, "PYTHONPATH": str(tree)}
+    env = {**os.environ, **(env or {}), "PYTHONPATH": str(tree)}
     with open(log, "ab") as out:
         return subprocess.Popen([sys.executable, "-m", "gateway.cli", "run", "--config",
                                  str(config)], cwd=tree, env=env, stdout=out,

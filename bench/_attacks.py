@@ -189,11 +189,14 @@ def attack_process(kind: str, host: str, ports: dict[str, int], registers: int,
 
 class Scada(threading.Thread):
     """A SCADA poller: one loop's 20 result registers every ``period_s`` on one connection,
-    reconnecting when closed; an answer counts if it comes within ``timeout_s``."""
+    reconnecting when closed (``per_read``: a new connection for each read, as some HMI
+    drivers do); an answer counts if it comes within ``timeout_s``."""
 
-    def __init__(self, port: int, period_s: float = 1.0, timeout_s: float = 2.0) -> None:
+    def __init__(self, port: int, period_s: float = 1.0, timeout_s: float = 2.0, *,
+                 per_read: bool = False) -> None:
         super().__init__(daemon=True)
         self.port, self.period_s, self.timeout_s = port, period_s, timeout_s
+        self.per_read = per_read
         self.asked: list[float] = []  # wall time of each read
         self.latency: list[float] = []  # seconds, NaN where no answer in time
         self.stop = threading.Event()
@@ -219,6 +222,9 @@ class Scada(threading.Thread):
                         raise ConnectionError("closed")
                     reply += chunk
                 self.latency.append(time.perf_counter() - t0)
+                if self.per_read:
+                    sock.close()
+                    sock = None
             except OSError:
                 self.latency.append(float("nan"))
                 if sock is not None:

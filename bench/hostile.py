@@ -1,9 +1,10 @@
-"""Red-team benchmarks: issue 15 (here) and issue 22 (bench/_hostile22.py, run after it).
+"""Red-team benchmarks: issue 15 (here), issue 22 (bench/_hostile22.py) and issue 31
+(bench/_hostile31.py: a wall clock stepped back, short windows, a reconnect storm), in turn.
 
 Issue 15: the gateway under 2,000 half-open connections and 2,000 garbage frames, with the
 open-files limit of the systemd unit.
 
-``python -m bench hostile`` runs both; ``BENCH_HOSTILE=22`` (or ``15``) only one.
+``python -m bench hostile`` runs all three; ``BENCH_HOSTILE=31`` (or ``22``, ``15``) one.
 
 Issue 15's processes: a simulated PLC (20 loops over Modbus, Ts 0.5 s),
 the gateway (``stiction-gateway run``, ``RLIMIT_NOFILE`` = the unit's ``LimitNOFILE``, state
@@ -335,6 +336,10 @@ def main() -> None:
         from bench import _hostile22  # noqa: PLC0415
 
         _hostile22.main()
+    if only in (None, "31"):
+        from bench import _hostile31  # noqa: PLC0415
+
+        _hostile31.main()
 
 
 def main15() -> None:

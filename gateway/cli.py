@@ -1,6 +1,6 @@
-"""`stiction-gateway` command line: run, check-config, opcua-cert, the onboarding commands
-import-tags, probe, browse, result-map (:mod:`.runtime.onboarding`), and the commands other
-packages register (:data:`COMMANDS`: the simulator's plc-sim and demo).
+"""`stiction-gateway` command line: run, check-config, findings, opcua-cert, the onboarding
+commands import-tags, probe, browse, result-map (:mod:`.runtime.onboarding`), and the
+commands other packages register (:data:`COMMANDS`: the simulator's plc-sim and demo).
 
 Exit status: 0 ok, 1 runtime failure (e.g. a port in use), 2 bad usage or bad config (the
 problems are printed on stderr, one per line, each naming the file, section and key).
@@ -13,7 +13,7 @@ import logging
 import sys
 from importlib.metadata import entry_points
 
-from .config import load_config
+from .config import Config, load_config
 from .config.addresses import describe_assigned
 from .errors import ConfigError, GatewayError
 from .runtime import onboarding
@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("file", metavar="FILE")
     check.add_argument("--bind-check", action="store_true",
                        help="also try to bind metrics.listen and modbus_server.listen")
+    fnd = sub.add_parser("findings", help="the engineer's findings beside the verdicts of "
+                         "their day (docs/onboarding.md#9-confirming-a-suspect-valve)")
+    fnd.add_argument("--config", required=True, metavar="FILE", help="gateway YAML config")
     sub.add_parser("opcua-cert", add_help=False,
                    help="create an OPC UA client (or --server) certificate and key "
                         "(see `stiction-gateway opcua-cert --help`, docs/opcua.md)")
@@ -74,10 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     # the sources report every pymodbus failure as a DeviceError, logged once per outage by
     # the poller; pymodbus' own per-attempt lines would repeat it every retry
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    # likewise asyncua: the OPC UA source maps its failures to DeviceError; its own loggers
-    # would add hostname warnings and a traceback for every refused certificate
+    # likewise asyncua: the OPC UA source maps its failures to DeviceError, named from the
+    # status codes; asyncua's own ERROR lines (a refused certificate: "Not trusted
+    # certificate used" and a traceback, "certificate is no longer valid") would stand
+    # beside the poller's line in the journal, or instead of it
     for name in ("asyncua", "asyncuagds"):
-        logging.getLogger(name).setLevel(logging.ERROR)
+        logging.getLogger(name).setLevel(logging.CRITICAL)
     try:
         return _dispatch(args)
     except ConfigError as exc:
@@ -101,7 +106,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         print(f"{args.file}: ok ({len(cfg.devices)} device(s), {len(cfg.loops)} loop(s))")
         for line in describe_assigned(cfg):
             print(line)
+        _check_findings(cfg)
         return 0
+    if args.command == "findings":
+        return _findings(args.config)
     if args.command in onboarding.COMMANDS:
         return onboarding.dispatch(args)
     if args.command == "run":
@@ -111,6 +119,54 @@ def _dispatch(args: argparse.Namespace) -> int:
     if getattr(args, "plugin", None) is not None:
         return int(args.plugin(args))
     raise AssertionError(args.command)
+
+
+def _check_findings(cfg: Config) -> None:
+    """check-config's word on the findings file: its problems on stderr, never a failure
+    (run skips a bad row and keeps going, and check-config runs before every start)."""
+    from .runtime.findings import read_configured
+
+    read = read_configured(cfg)
+    if read is None:
+        return
+    for line in read.problems:
+        print(line, file=sys.stderr)
+    if not read.readable:
+        print(f"{read.source}: not read: run starts without findings (the gateway keeps "
+              "running; fix the file and send SIGHUP)", file=sys.stderr)
+    else:
+        skipped = f", {len(read.problems)} bad row(s) skipped by run" if read.problems else ""
+        print(f"{read.source}: {len(read.findings)} finding(s){skipped}")
+
+
+def _findings(path: str) -> int:
+    """``findings``: the agreement table; exit 2 when the file has problems (for a plant's
+    CI over its findings file), 0 otherwise."""
+    from .config.findings import verdicts_path
+    from .core.findings import FindingsBook
+    from .outputs.verdicts import read_history
+    from .outputs.verdicts.history import HistoryError
+    from .runtime.findings import agreement_table, read_configured
+
+    cfg = load_config(path)
+    read = read_configured(cfg)
+    if read is None:
+        raise ConfigError([f"{path}: no 'findings' file in the config (findings: FILE.csv)"])
+    book = FindingsBook()
+    hist = verdicts_path(cfg.gateway.state_file)
+    if not hist.exists():
+        note = f"no verdict history yet ({hist}): every verdict unknown"
+    else:
+        try:
+            book.history.load(read_history(hist, max_loops=2 * len(cfg.loops) + 1000))
+            note = f"verdict history {hist} ({len(book.history.loops)} loops)"
+        except HistoryError as exc:
+            note = f"verdict history {hist} unusable ({exc}): every verdict unknown"
+    book.apply(read)
+    sys.stdout.write(agreement_table(cfg, book, note))
+    for line in read.problems:
+        print(line, file=sys.stderr)
+    return 2 if read.problems else 0
 
 
 if __name__ == "__main__":

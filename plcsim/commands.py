@@ -22,6 +22,10 @@ def add_plc_sim(sub: Any) -> None:
     sim.add_argument("--config", required=True, metavar="FILE", help="plc-sim YAML config")
     sim.add_argument("--write-gateway-config", metavar="FILE",
                      help="write the matching gateway config to FILE and exit")
+    sim.add_argument("--step-test", metavar="LOOP", help="hold LOOP in manual and play a "
+                     "step test (the config's step_test section, or its defaults)")
+    sim.add_argument("--record", metavar="FILE", help="with --step-test: write the test's "
+                     "recording (t, op, pv, position) to FILE, for `stiction valve-test`")
     sim.set_defaults(plugin=_plc_sim)
 
 
@@ -40,6 +44,8 @@ def _plc_sim(args: argparse.Namespace) -> int:
     from .sim import serve
 
     sim_cfg = load_sim_config(args.config)
+    if args.step_test or args.record:
+        sim_cfg = _with_step_test(sim_cfg, args.step_test, args.record)
     if args.write_gateway_config:
         text = dump_yaml(gateway_config(sim_cfg))
         Path(args.write_gateway_config).write_text(
@@ -55,6 +61,29 @@ def _plc_sim(args: argparse.Namespace) -> int:
 
     asyncio.run(serve_sim())
     return 0
+
+
+def _with_step_test(cfg: Any, loop: str | None, record: str | None) -> Any:
+    """The config with its step test set from --step-test / --record (ConfigError if the
+    loop is not one of its single loops)."""
+    import dataclasses
+
+    from gateway.errors import ConfigError
+
+    from .steptest import StepTest
+
+    test = cfg.step_test or (StepTest(loop) if loop else None)
+    if test is None:
+        raise ConfigError(["--record needs --step-test LOOP (or a step_test section in "
+                           "the config)"])
+    if loop:
+        test = dataclasses.replace(test, loop=loop)
+    if test.loop not in {lp.name for lp in cfg.loops}:
+        raise ConfigError([f"--step-test: no single loop {test.loop!r} (loops: "
+                           f"{', '.join(lp.name for lp in cfg.loops)})"])
+    if record:
+        test = dataclasses.replace(test, record=Path(record))
+    return dataclasses.replace(cfg, step_test=test)
 
 
 def _demo(args: argparse.Namespace) -> int:

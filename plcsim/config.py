@@ -23,6 +23,11 @@
         address: 0              # optional; default: right after the previous loop
         window_s: 3600          # optional, only for --write-gateway-config
         result_address: 0       # optional, only for --write-gateway-config
+    step_test:                  # optional: hold one loop in manual, play a step test
+      loop: FIC101              # (plcsim/steptest.py, docs/plc-sim.md)
+      start_s: 600              # process s from the start (default 0)
+      hold_s: 60                # process s per OP level (default 60)
+      record: step-test.csv     # optional: the test's recording (t, op, pv, position)
     plants:                     # optional: interacting loops with one source (plcsim/plant.py)
       - plant: sticky-feeds-two # a stiction.scenarios.plants.NAMED_PLANTS name
         prefix: U2.             # optional: loop names are prefix + the plant's loop names
@@ -51,6 +56,7 @@ from stiction.scenarios.plants import NAMED_PLANTS
 
 from .opcua import POLICY_TYPES, ServerSecurity
 from .plant import DEFAULT_DURATION_S, SimPlant
+from .steptest import StepTest
 
 __all__ = ["REGISTERS_PER_LOOP", "SimConfig", "SimLoop", "load_sim_config", "parse_sim_config"]
 
@@ -82,6 +88,7 @@ class SimConfig:
     protocol: str = "modbus"
     opcua: ServerSecurity | None = None  # with protocol opcua: None means None/None
     plants: tuple[SimPlant, ...] = ()
+    step_test: StepTest | None = None  # one loop held in manual, playing a step test
 
     def loop_names(self) -> list[str]:
         """Every loop served, in register order: the single loops, then the plants'."""
@@ -153,6 +160,7 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
         loops.append(SimLoop(lname, sc, window_s=window, result_address=result_address,
                              noise=noise, address=address))
     plants = _parse_plants(top, names, used, next_address)
+    step_test = _parse_step_test(top, {lp.name for lp in loops}, source, ts)
     used.sort()
     for (a0, n0), (a1, n1) in itertools.pairwise(used):
         if a1 < a0 + REGISTERS_PER_LOOP:
@@ -161,7 +169,34 @@ def parse_sim_config(data: Any, source: str = "<plc-sim config>") -> SimConfig:
     if not problems.ok:
         raise ConfigError(problems.lines)
     return SimConfig(tuple(loops), listen, unit_id, ts, time_scale, seed, word_order,
-                     protocol, opcua, plants)
+                     protocol, opcua, plants, step_test)
+
+
+def _parse_step_test(top: Section, loops: set[str], source: str, ts: Any
+                     ) -> StepTest | None:
+    """The ``step_test`` section (optional): a single loop, its start, hold and record."""
+    if not top.has("step_test"):
+        return None
+    sec = top.sub("step_test", "step_test")
+    loop = sec.req("loop", s.string)
+    start = sec.opt("start_s", s.number(non_negative=True), 0.0)
+    hold = sec.opt("hold_s", s.number(positive=True), 60.0)
+    record = sec.opt("record", s.string, None)
+    sec.done()
+    if loop is not MISSING and loop not in loops:
+        sec.error("loop", f"no single loop {loop!r} (loops: {', '.join(sorted(loops))})")
+        return None
+    if hold is not MISSING and ts is not MISSING and hold < 5 * ts:
+        sec.error("hold_s", f"must hold at least 5 samples (ts {ts:g} s)")
+        return None
+    if MISSING in (loop, start, hold, record):
+        return None
+    path = None
+    if record is not None:
+        base = Path(source).parent if Path(source).is_file() else Path.cwd()
+        path = Path(record).expanduser()
+        path = path if path.is_absolute() else base / path
+    return StepTest(loop, start, hold, path)
 
 
 def _parse_plants(top: Section, names: set[str], used: list[tuple[int, str]],

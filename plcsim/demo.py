@@ -17,10 +17,16 @@ and a plant of interacting loops (``U2.*``, :data:`DEMO_PLANT`: the simulated PL
 group, names U2.FIC101 its source and the others followers; the table says so per loop and
 lists the groups above it.
 
-At the default 40x, one wall second is 40 process seconds: the sticky flow loop shows
-``stiction`` after a few seconds of wall time, the level loop after about 50 s (once its
-window no longer holds the simulation's start-up), the plant's group after about 30 s
-(U2.FIC101's own verdict stays ``undetermined``, about 0.74).
+At the default 40x, one wall second is 40 process seconds; the simulated PLC runs
+``DEMO_WARM_UP_S`` before the gateway polls it. The sticky flow loop shows ``stiction`` after
+about 15 s of wall time (its window holds 2.6 of its cycles), the level loop after about
+20 s (``undetermined`` first, ``stiction`` once it has held 5 rounds: the verdict
+hysteresis). The plant's group shows in the rounds whose plant-wide step finds the shared
+cycle, once the plant windows are full (30 s); U2.FIC101's valve is small and its own verdict
+mostly ``undetermined``, so that depends on each round's windows (README). No verdict
+changes once a loop's window is full (``tests/plcsim/test_demo_verdicts.py``, the demo
+replayed in memory). Under the table, a legend (:data:`LEGEND`) and what each verdict on
+screen asks of the engineer (:data:`VERDICT_ADVICE`).
 """
 
 from __future__ import annotations
@@ -37,14 +43,21 @@ from typing import TextIO
 from gateway.config import parse_config
 from gateway.runtime.gateway import Gateway
 from gateway.runtime.service import install_stop_signals
+from stiction.scenarios.plants import NAMED_PLANTS
 
 from .config import parse_sim_config
 from .gateway_yaml import gateway_config
 from .sim import PlcSim
 
-__all__ = ["DEMO_LOOPS", "DEMO_PLANT", "demo_configs", "run_demo"]
+__all__ = ["DEMO_LOOPS", "DEMO_PLANT", "LEGEND", "VERDICT_ADVICE", "demo_configs", "demo_sim",
+           "plant_what", "run_demo"]
 
 DEMO_TIME_SCALE = 40.0
+DEMO_WARM_UP_S = 1200.0
+"""Process seconds the simulated PLC runs before the gateway starts polling it: the loops'
+start-up (their set-point steps at 20 s, a sticky valve's first long stick while OP winds
+up) is over, as at a plant that was running when the gateway came, so every window the
+gateway fills holds steady operation and a verdict changes only when the evidence does."""
 DEMO_ANALYSIS_INTERVAL_S = 120.0  # process seconds (3 s of wall time at 40x)
 DEMO_NOISE = 0.02
 # The demo is deterministic in its simulated loops (seeded). Seeds 1-8 were checked offline
@@ -65,6 +78,34 @@ DEMO_LOOPS: tuple[tuple[str, str, float, str], ...] = (
 
 DEMO_PLANT: dict[str, str | float] = {"plant": "sticky-feeds-two", "prefix": "U2.",
                                       "window_s": 1200.0}
+
+ADVICE_DOC = "docs/modbus-map.md#verdict-codes"
+VERDICT_ADVICE: dict[str, str] = {
+    "stiction": "the valve sticks: confirm with small OP steps in manual; plan its "
+                "maintenance, the largest fd first",
+    "propagated": "its cycle comes from the group's source loop: fix that one first, "
+                  "not this valve",
+    "undetermined": "it cycles, the evidence is unclear: do not act on it alone; watch the "
+                    "next rounds, test the valve when you can",
+    "no_stiction": "it cycles like a sine: look at the tuning or a disturbance, not the valve",
+    "not_oscillating": "it does not cycle: nothing to do",
+    "valve_not_responding": "OP moves, PV does not: check the valve, its positioner and air "
+                            "now",
+    "bad_data": "the window cannot be analysed: the reason says why (gaps, frozen, "
+                "saturated)",
+    "warming_up": "the loop's window is still filling: wait (fill says how far)",
+    "none": "no analysis yet: the first comes within one analysis interval",
+    "stale": "no fresh samples while the device answers: check the loop's points",
+    "device_down": "its device does not answer: the journal says why",
+}
+"""What each verdict the table can show asks of the engineer (the demo prints those on
+screen; docs/modbus-map.md says the same at length)."""
+LEGEND = ("SI: stiction index 0-1 (>= 0.6 stiction-like, <= 0.4 not); fd, fs: dynamic and "
+          "static friction, % of valve span; period: of the cycle, process s; fill: share of "
+          "the loop's window holding samples (1.00 full); #: analyses so far; plant: the "
+          "loop's plant-wide group and role (source: its valve drives the shared cycle; "
+          "follower: it carries it)")
+_KINDS = {"F": "flow", "L": "level", "T": "temperature", "P": "pressure", "A": "analyser"}
 
 
 def _free(host: str, port: int) -> int:
@@ -94,16 +135,45 @@ def demo_configs(*, time_scale: float = DEMO_TIME_SCALE, metrics_port: int = 910
     return sim, gw
 
 
+def demo_sim(sim_raw: dict) -> PlcSim:  # type: ignore[type-arg]
+    """The demo's simulated PLC (``demo_configs``' first part), run ``DEMO_WARM_UP_S``
+    process seconds before it serves."""
+    sim = PlcSim(parse_sim_config(sim_raw, "<demo plc-sim>"))
+    for _ in range(round(DEMO_WARM_UP_S / sim.cfg.ts)):
+        sim.step()
+    return sim
+
+
 def _fmt(x: float | None, scale: float = 1.0, digits: int = 2) -> str:
     if x is None or not math.isfinite(x):
         return "-"
     return f"{x * scale:.{digits}f}"
 
 
-def _wrapped(text: str, width: int = 100) -> list[str]:
+def _wrapped(text: str, width: int = 100, indent: str = "         ") -> list[str]:
     """The whole reason, on indented lines of at most ``width`` characters: never cut."""
-    return textwrap.wrap(" ".join(text.split()), width, initial_indent="         ",
-                         subsequent_indent="         ", break_on_hyphens=False)
+    return textwrap.wrap(" ".join(text.split()), width, initial_indent=indent,
+                         subsequent_indent=indent, break_on_hyphens=False)
+
+
+def plant_what() -> dict[str, str]:
+    """What each plant loop of :data:`DEMO_PLANT` is, from its scenario: the measured
+    quantity (the tag's first letter, ISA 5.1), whether its valve sticks, and whose cycle
+    reaches it."""
+    scenario = NAMED_PLANTS[str(DEMO_PLANT["plant"])]
+    follows = {f: src for src, followers in scenario.sources.items() for f in followers}
+    out = {}
+    for lp in scenario.loops:
+        kind = _KINDS.get(lp.name[:1], "loop")
+        if lp.sticky:
+            role = " (source)" if lp.name in scenario.sources else ""
+            text = f"sticky {kind} valve{role}"
+        elif lp.name in follows:
+            text = f"{kind}, {follows[lp.name]}'s cycle"
+        else:
+            text = f"{kind}, good valve"
+        out[f"{DEMO_PLANT['prefix']}{lp.name}"] = text
+    return out
 
 
 def render_table(gw: Gateway, started: float, out: TextIO) -> None:
@@ -111,10 +181,10 @@ def render_table(gw: Gateway, started: float, out: TextIO) -> None:
     proc = (time.monotonic() - started) * gw.config.gateway.time_scale
     lines = [f"t = {time.monotonic() - started:5.1f} s wall, {proc:7.0f} s process",
              *_plant_lines(gw),
-             f"{'loop':10} {'what':22} {'verdict':16} {'SI':>6} {'fd %':>6} {'fs %':>6} "
+             f"{'loop':10} {'what':28} {'verdict':16} {'SI':>6} {'fd %':>6} {'fs %':>6} "
              f"{'period s':>8} {'fill':>5} {'#':>4} {'plant':14}  (reason below)"]
-    what = {n: w for n, _, _, w in DEMO_LOOPS}
-    in_plant = f"plant {DEMO_PLANT['plant']}"
+    what = {n: w for n, _, _, w in DEMO_LOOPS} | plant_what()
+    shown: list[str] = []
     for i, name in enumerate(st.loops):
         number, role, _source = st.plant.of(name)
         plant = f"group {number} {role}" if number else ""
@@ -122,7 +192,7 @@ def render_table(gw: Gateway, started: float, out: TextIO) -> None:
         a = res.assessment if res else None
         size = a.sizes() if a else None  # % of span: the gateway always knows op_range
         lines.append(
-            f"{name:10} {what.get(name, in_plant):22} "
+            f"{name:10} {what.get(name, ''):28} "
             f"{st.verdict_name(i):16} "
             f"{_fmt(a.stiction_index if a else None):>6} "
             f"{_fmt(size.fd if size else None, 1, 1):>6} "
@@ -132,6 +202,12 @@ def render_table(gw: Gateway, started: float, out: TextIO) -> None:
             f"{plant:14}".rstrip())
         if a is not None:
             lines.extend(_wrapped(a.reason))
+        shown += [st.verdict_name(i)] if st.verdict_name(i) not in shown else []
+    lines += ["", *_wrapped(LEGEND, indent="")]
+    lines += [f"what to do ({ADVICE_DOC}):"]
+    for v in shown:
+        lines += textwrap.wrap(VERDICT_ADVICE.get(v, "see the reason"), 100,
+                               initial_indent=f"  {v:16} ", subsequent_indent=" " * 19)
     if out.isatty():
         out.write("\x1b[H\x1b[J")
     out.write("\n".join(lines) + "\n\n")
@@ -145,7 +221,14 @@ def _plant_lines(gw: Gateway) -> list[str]:
         source = g.source or "none of the loops (from outside)"
         out.append(f"plant group {g.number}: a {g.period_s:.0f} s cycle, source {source}, "
                    f"loops {', '.join(g.loops)}")
-    return out or ["plant groups: none yet (the plant-wide step needs full windows)"]
+    if out:
+        return out
+    plant = [i for i, n in enumerate(gw.store.loops) if n.startswith(str(DEMO_PLANT["prefix"]))]
+    fills = [r.window_fill if (r := gw.store.results[i]) else 0.0 for i in plant]
+    if fills and min(fills) >= 0.95:
+        return ["plant groups: none found this round (the plant-wide step found no cycle "
+                "that loops share clearly enough)"]
+    return ["plant groups: none yet (the plant-wide step needs full windows)"]
 
 
 async def run_demo(duration: float | None = None, *, out: TextIO = sys.stdout,
@@ -158,8 +241,7 @@ async def run_demo(duration: float | None = None, *, out: TextIO = sys.stdout,
     sim_raw, gw_raw = demo_configs(time_scale=time_scale,
                                    metrics_port=_free("127.0.0.1", 9108),
                                    result_port=_free("127.0.0.1", 5020))
-    sim_cfg = parse_sim_config(sim_raw, "<demo plc-sim>")
-    async with PlcSim(sim_cfg) as sim:
+    async with demo_sim(sim_raw) as sim:
         for dev in gw_raw["devices"]:
             dev["port"] = sim.port
         config = parse_config(gw_raw, "<demo gateway>")
@@ -172,6 +254,7 @@ async def run_demo(duration: float | None = None, *, out: TextIO = sys.stdout,
                 f"  Prometheus metrics: http://127.0.0.1:{gw.metrics_port}/metrics\n"
                 f"  Modbus result server: 127.0.0.1:{gw.result_port} unit 1 "
                 f"(map: docs/modbus-map.md)\n"
+                f"  what each verdict means and what to do: {ADVICE_DOC}\n"
                 f"  analysis every {config.gateway.analysis_interval_s:g} process s; "
                 f"Ctrl-C to stop\n\n")
             out.flush()

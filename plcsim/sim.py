@@ -6,7 +6,8 @@ The config is :mod:`plcsim.config` (docs/plc-sim.md). Each loop takes 4 register
 holding and input registers (read-only). Loops are grouped by valve class into
 :class:`stiction.models.simulate.LoopBank` s whose parameters are arrays, so a step of 10,000 loops
 costs a few dozen numpy operations. Each loop gets its scenario's setpoint step (``sp_step``
-at ``sp_step_time``) so sticky loops start their limit cycle.
+at ``sp_step_time``) so sticky loops start their limit cycle. With ``step_test`` one loop
+is held in manual and steps through a step test (:mod:`plcsim.steptest`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from stiction.models.simulate import LoopBank, LoopParams
 from .config import REGISTERS_PER_LOOP, SimConfig
 from .opcua import OpcUaPlcServer
 from .plant import PlantFeed
+from .steptest import StepTestPlayer
 
 __all__ = ["PlcSim", "build_banks", "serve"]
 
@@ -78,6 +80,14 @@ class PlcSim:
         self._pv_idx = addr[:, None] + 2 + np.arange(2)
         self.banks = build_banks(cfg)
         self.plants = PlantFeed(cfg.plants, cfg.ts, cfg.seed)
+        # the loop under a step test: (its bank, its place there, the player)
+        self.step_test: tuple[int, int, StepTestPlayer] | None = None
+        if cfg.step_test is not None:
+            row = cfg.loop_names().index(cfg.step_test.loop)
+            for k, b in enumerate(self.banks):
+                if row in b.rows:
+                    place = int(np.flatnonzero(b.rows == row)[0])
+                    self.step_test = (k, place, StepTestPlayer(cfg.step_test))
         self.op = np.zeros(n)
         self.pv = np.zeros(n)
         self.steps = 0
@@ -99,12 +109,22 @@ class PlcSim:
 
     def step(self) -> None:
         """Advance every loop one sample and publish OP/PV in the registers."""
-        for b in self.banks:
+        for k, b in enumerate(self.banks):
             t = b.bank.t
             sp = b.sp_base + np.where(t >= b.sp_time, b.sp_step, 0.0)
-            out = b.bank.step(sp)
+            manual = None
+            test = self.step_test if self.step_test and self.step_test[0] == k else None
+            if test is not None:
+                held = test[2].manual(t, float(self.op[b.rows[test[1]]]))
+                if held is not None:
+                    manual = np.full(b.rows.size, np.nan)
+                    manual[test[1]] = held
+            out = b.bank.step(sp, manual=manual)
             self.op[b.rows] = out.op
             self.pv[b.rows] = out.pv
+            if test is not None and manual is not None:
+                i = test[1]
+                test[2].record(t, float(out.op[i]), float(out.pv[i]), float(out.vp[i]))
         self.op[self.singles:], self.pv[self.singles:] = self.plants.step()
         wo = self.cfg.word_order
         self.image[self._op_idx] = encode_values(self.op, "float32", wo)
@@ -147,6 +167,8 @@ class PlcSim:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await self._task
+        if self.step_test is not None:
+            self.step_test[2].close()
         if self.opcua is not None:
             await self.opcua.stop()
         else:

@@ -674,7 +674,7 @@ def test_a_refused_login_waits_half_a_minute_to_a_minute_from_the_first_refusal(
 
     asyncio.run(go())
     gaps = np.diff(attempts)
-    assert len(attempts) <= 3, attempts
+    assert 2 <= len(attempts) <= 3, attempts  # retried (issue 31: never required before)
     assert (gaps >= 30.0 - 0.2).all() and (gaps <= 60.0 + 0.2).all(), gaps
 
 

@@ -27,6 +27,7 @@ quantify    signal                            (the sizes: never a detector's mod
 diagnosis   detectors, quantify, signal
 plant       diagnosis and everything below it (the plant-wide view)
 paper       diagnosis, scenarios, models      (the paper's tables, reproduced)
+valvetest   signal                            (step tests in manual: never the diagnosis)
 cli         all of the above
 ==========  ===============================================================================
 
@@ -88,6 +89,7 @@ STICTION_BELOW: dict[str, set[str]] = {
     "diagnosis": {"detectors", "quantify", "signal", *GROUND},
     "plant": {"diagnosis", "detectors", "quantify", "signal", *GROUND},
     "paper": {"diagnosis", "scenarios", "models", "signal", *GROUND},
+    "valvetest": {"signal", *GROUND},
 }
 STICTION_BELOW["cli"] = set(STICTION_BELOW) - {"cli"}
 STICTION_BELOW[""] = STICTION_BELOW["cli"]  # stiction/__init__: the public API
@@ -331,6 +333,10 @@ def test_the_rooms_import_only_downward() -> None:
     ("stiction.quantify.route", "from ..detectors.ellipse import EllipseFit",
      "quantify may not import detectors"),
     ("stiction.diagnosis.combine", "from ..cli import main", "diagnosis may not import cli"),
+    ("stiction.valvetest.bands", "from ..diagnosis.analyze import analyze",
+     "valvetest may not import diagnosis"),
+    ("stiction.valvetest.response", "from ..scenarios.steptest import simulate_step_test",
+     "valvetest may not import scenarios"),
     ("plcsim.sim", "from gateway.inputs.modbus import ModbusInput", "plcsim uses"),
     ("stiction.diagnosis.model", "from lab.export.model import MODEL",
      "stiction never imports lab"),

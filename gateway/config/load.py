@@ -23,6 +23,7 @@ from ..wire.results import MAX_RESULT_UNIT_ID, RESULT_BLOCK_SIZE, overlapping_bl
 from . import schema as s
 from .addresses import assign_result_addresses
 from .checks import check_config, identification
+from .findings import findings_path
 from .limits import read_document
 from .model import (
     DEFAULT_POLL_INTERVAL_S,
@@ -32,6 +33,7 @@ from .model import (
     Config,
     DeviceConfig,
     GatewaySettings,
+    HysteresisSettings,
     LoopConfig,
     MetricsSettings,
     PlantSettings,
@@ -74,6 +76,8 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
     server = _settings(top.sub("modbus_server", "modbus_server"), ResultServerSettings,
                        SERVER_KEYS)
     plant = _settings(top.sub("plant", "plant"), PlantSettings, PLANT_KEYS)
+    hysteresis = _settings(top.sub("verdict_hysteresis", "verdict_hysteresis"),
+                           HysteresisSettings, HYSTERESIS_KEYS)
 
     devices: dict[str, DeviceConfig | None] = {}  # None: named but invalid
     protocols: dict[str, str] = {}  # device name -> protocol, also for invalid devices
@@ -109,6 +113,7 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
     names: set[str] = set()
     sections: dict[str, Section] = {}  # loop name -> its section, for later problems
     tables = tag_tables(top)  # loops_csv: loops from tag lists, after those of `loops`
+    findings = top.opt("findings", s.string, None)  # the file is read by run, not here
     listed = s.entries(top, "loops", "loop") if top.has("loops") or not tables else ()
     for _i, name, sec in itertools.chain(listed, tag_entries(problems, tables, protocols)):
         loop = _parse_loop(sec, devices, protocols, server.unit_id)
@@ -138,7 +143,9 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
         raise ConfigError(problems.lines)
     config = Config(source, tuple(d for d in devices.values() if d is not None),
                     tuple(loops), gateway, metrics, server, assigned=tuple(assigned),
-                    plant=plant)
+                    plant=plant, hysteresis=hysteresis,
+                    findings=None if findings in (None, MISSING)
+                    else str(findings_path(source, findings)))
     if one_gateway:
         check_config(problems, config)  # what run would refuse or crash on (checks.py)
     if not problems.ok:
@@ -169,6 +176,10 @@ METRICS_KEYS: dict[str, Callable[[Any], Any]] = {
 PLANT_KEYS: dict[str, Callable[[Any], Any]] = {
     "enabled": s.boolean,
     "max_samples": s.integer(64, 65536),
+}
+HYSTERESIS_KEYS: dict[str, Callable[[Any], Any]] = {
+    "rounds": s.integer(1, 1000),
+    "margin": s.number(non_negative=True, at_most=1.0),
 }
 SERVER_KEYS: dict[str, Callable[[Any], Any]] = {
     "listen": s.listen_address,

@@ -19,6 +19,7 @@ __all__ = [
     "Config",
     "DeviceConfig",
     "GatewaySettings",
+    "HysteresisSettings",
     "LoopConfig",
     "MetricsSettings",
     "PlantSettings",
@@ -87,6 +88,15 @@ class PlantSettings:
 
 
 @dataclasses.dataclass(frozen=True)
+class HysteresisSettings:
+    """``verdict_hysteresis``: when a published verdict may change (docs/configuration.md,
+    :mod:`gateway.core.hysteresis`)."""
+
+    rounds: int = 5  # analysis rounds a new verdict must hold (1: every round's is published)
+    margin: float = 0.5  # ... or the change of confidence that publishes it at once (0-1)
+
+
+@dataclasses.dataclass(frozen=True)
 class DeviceConfig:
     """One device (one connection). ``options`` is the protocol plugin's own frozen
     dataclass (e.g. :class:`gateway.inputs.modbus.config.ModbusDeviceOptions`)."""
@@ -144,6 +154,11 @@ class Config:
     # loops whose result_address the loader assigned (config/addresses.py), in config order
     assigned: tuple[str, ...] = ()
     plant: PlantSettings = PlantSettings()
+    hysteresis: HysteresisSettings = HysteresisSettings()
+    # the engineer's findings file (`findings:`, relative paths resolved against the
+    # config's folder); None: none. Read at start and on SIGHUP, never by load_config: a
+    # bad findings file never makes the config invalid (gateway.config.findings)
+    findings: str | None = None
 
     def device(self, name: str) -> DeviceConfig:
         for dev in self.devices:

@@ -7,8 +7,10 @@ would poll happily and diagnose one loop's signals as another's. A point marked
 
 What "the same registers" means is the protocol's: an input plugin may define
 ``point_span(address) -> (space, first, end)`` (``end`` exclusive; points of one ``space``
-overlap when their spans do), and ``span_text(space, first, end)`` for messages. A protocol
-without ``point_span`` is not checked.
+overlap when their spans do), ``span_text(space, first, end)`` for messages and
+``SPAN_WORDS`` (verb, what a span is, what a point's key holds: Modbus ``("are",
+"registers", "address")``, the default; OPC UA ``("is", "node", "node id")``: two points of
+one node id). A protocol without ``point_span`` is not checked.
 """
 
 from __future__ import annotations
@@ -20,7 +22,10 @@ from .model import DeviceConfig, LoopConfig
 from .plugins import input_plugin
 from .schema import Section
 
-__all__ = ["check_overlaps"]
+__all__ = ["SPAN_WORDS", "check_overlaps"]
+
+SPAN_WORDS = ("are", "registers", "address")
+"""How a message names a span (Modbus registers), unless the plugin says otherwise."""
 
 
 def check_overlaps(sections: Mapping[str, Section], devices: Sequence[DeviceConfig],
@@ -32,15 +37,16 @@ def check_overlaps(sections: Mapping[str, Section], devices: Sequence[DeviceConf
         by_device.setdefault(lp.device, []).append(lp)
     for dev in devices:
         plugin = input_plugin(dev.protocol)
-        span = getattr(plugin, "point_span", None)
-        if span is None or dev.name not in by_device:
-            continue
-        text = getattr(plugin, "span_text", _span_text)
-        _check_device(sections, by_device[dev.name], span, text)
+        if getattr(plugin, "point_span", None) is not None and dev.name in by_device:
+            _check_device(sections, by_device[dev.name], plugin)
 
 
 def _check_device(sections: Mapping[str, Section], loops: Sequence[LoopConfig],
-                  span: Any, text: Any) -> None:
+                  plugin: Any) -> None:
+    span = plugin.point_span
+    text = getattr(plugin, "span_text", _span_text)
+    verb, noun, address = getattr(plugin, "SPAN_WORDS", SPAN_WORDS)
+    key = getattr(plugin, "POINT_ADDRESS_KEY", "address")
     spans: list[tuple[Hashable, int, int, int, str, str, bool]] = []
     for order, lp in enumerate(loops):
         for role, p in (("op", lp.op), ("pv", lp.pv)):
@@ -56,13 +62,13 @@ def _check_device(sections: Mapping[str, Section], loops: Sequence[LoopConfig],
                 f"loop {reach[4]}'s {reach[5]}"
             lo, hi = max(first, reach[1]), min(end, reach[2])
             sec = sections.get(name)
-            what = (f"{text(space, first, end)} are {other}'s registers too"
+            what = (f"{text(space, first, end)} {verb} {other}'s {noun} too"
                     if (first, end) == (reach[1], reach[2]) else
                     f"{text(space, first, end)} overlaps {other} "
                     f"({text(reach[0], reach[1], reach[2])}) at {text(space, lo, hi)}")
             if sec is not None:
-                sec.error(f"{role}.address", (
-                    f"{what}: a wrong address? If both points read the same value on "
+                sec.error(f"{role}.{key}", (
+                    f"{what}: a wrong {address}? If both points read the same value on "
                     f"purpose (a split-range pair's PV), mark both shared: true"))
         if reach is None or reach[0] != space or end > reach[2]:
             reach = cur

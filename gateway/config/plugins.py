@@ -27,6 +27,7 @@ OUTPUTS: dict[str, str] = {
     "modbus_server": "gateway.outputs.modbus_server",
     "prometheus": "gateway.outputs.prometheus",
     "statefile": "gateway.outputs.statefile",
+    "verdicts": "gateway.outputs.verdicts",
     "memory": "gateway.outputs.memory",
 }
 """Output name -> output plugin module."""

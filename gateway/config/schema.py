@@ -170,7 +170,8 @@ def integer(lo: int | None = None, hi: int | None = None) -> Callable[[Any], int
     return conv
 
 
-def number(*, positive: bool = False, non_negative: bool = False) -> Callable[[Any], float]:
+def number(*, positive: bool = False, non_negative: bool = False,
+           at_most: float | None = None) -> Callable[[Any], float]:
     def conv(value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise TypeError("must be a number")
@@ -181,6 +182,8 @@ def number(*, positive: bool = False, non_negative: bool = False) -> Callable[[A
             raise ValueError("must be > 0")
         if non_negative and out < 0:
             raise ValueError("must be >= 0")
+        if at_most is not None and out > at_most:
+            raise ValueError(f"must be <= {at_most:g}")
         return out
 
     return conv

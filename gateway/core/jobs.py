@@ -19,6 +19,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from stiction import Assessment, Verdict
+from stiction.diagnosis.enough import (
+    JUDGE_SAMPLES,
+    SEE_CYCLES,
+    TOO_SHORT,
+    TooShort,
+    duration,
+    movement_scales,
+    too_short,
+)
 
 from .points import Quality
 from .windows import LoopGroup, analysis_segment
@@ -30,11 +39,9 @@ DEFAULT_ANALYZE = "stiction:analyze"
 BAD_TAIL = 3  # trailing BAD samples beyond which the current data is called unusable
 MIN_SEGMENT = 32  # stiction.analyze's minimum window
 FULL_WINDOW = 0.95
-"""Share of the window the analysed segment must span before ``not_oscillating`` is final
-(a few samples short of the whole: the latest poll may have failed)."""
-CYCLES_TO_SEE = 2.6
-"""Cycles of an oscillation a window must hold before the analysis can see it: its ACF test
-needs four zero crossings within 2/3 of the window (7/4 periods <= 2/3 of it)."""
+"""Share of the window the analysed segment must span before it counts as full, and
+``not_oscillating`` as final (a few samples short of the whole: the latest poll may have
+failed)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,16 +104,36 @@ def analyze_batch(path: str, jobs: Sequence[LoopJob]
             a = Assessment(Verdict.BAD_DATA, reason)
         elif len(op) < 2:
             a = Assessment(Verdict.BAD_DATA, "no usable samples in the window yet")
+        elif len(op) >= FULL_WINDOW * job.size:
+            a = _analyze(analyze, job, op, pv)
+        elif len(op) < JUDGE_SAMPLES:  # too short for any verdict: not even analysed
+            a = warming_up(Assessment(Verdict.WARMING_UP, ""), len(op), job.size, job.ts,
+                           fill, short=too_short(len(op), waiting=True))
         else:
-            try:
-                a = analyze(op, pv, ts=job.ts, kp=job.kp, delay=job.delay,
-                            process=job.process, op_range=job.op_range)
-            except Exception as exc:  # a bug in one window must not stop the round
-                a = Assessment(Verdict.BAD_DATA, f"analysis failed: {type(exc).__name__}: {exc}")
-            if a.verdict == Verdict.NOT_OSCILLATING and len(op) < FULL_WINDOW * job.size:
-                a = warming_up(a, len(op), job.size, job.ts, fill)
+            a = _while_filling(_analyze(analyze, job, op, pv), op, pv, job, fill)
         out.append((job.index, a, fill, len(op), time.perf_counter() - t0))
     return out
+
+
+def _analyze(analyze: Callable[..., Assessment], job: LoopJob, op: NDArray[np.float64],
+             pv: NDArray[np.float64]) -> Assessment:
+    try:
+        return analyze(op, pv, ts=job.ts, kp=job.kp, delay=job.delay, process=job.process,
+                       op_range=job.op_range)
+    except Exception as exc:  # a bug in one window must not stop the round
+        return Assessment(Verdict.BAD_DATA, f"analysis failed: {type(exc).__name__}: {exc}")
+
+
+def _while_filling(a: Assessment, op: NDArray[np.float64], pv: NDArray[np.float64],
+                   job: LoopJob, fill: float) -> Assessment:
+    """``a``, or ``warming_up`` while the filling segment is too short to judge (module doc)."""
+    period = None if a.period_s is None else a.period_s / job.ts
+    short = too_short(len(op), period=period, scales=movement_scales(op, pv), waiting=True)
+    withdrawn = short is not None and (short.withdraws(a.verdict) or (
+        a.verdict == Verdict.BAD_DATA and a.reason.startswith(TOO_SHORT)))
+    if withdrawn or a.verdict == Verdict.NOT_OSCILLATING:
+        return warming_up(a, len(op), job.size, job.ts, fill, short=short)
+    return a
 
 
 def bad_values_reason(quality: NDArray[np.uint8], usable: int) -> str | None:
@@ -127,28 +154,26 @@ def bad_values_reason(quality: NDArray[np.uint8], usable: int) -> str | None:
     return None
 
 
-def warming_up(a: Assessment, samples: int, size: int, ts: float, fill: float) -> Assessment:
-    """``a`` (``not_oscillating`` on ``samples`` of a window of ``size``) as ``warming_up``:
-    the segment is too short to hold enough cycles of a slow oscillation, so the verdict is
-    not final. The reason says how full the window is and what it waits for (under the
-    journal's 200 characters); the analysis's own reason stays in the evidence's notes."""
-    reason = (f"warming up: window fill {fill:.0%}, {_duration(samples * ts)} of "
-              f"{_duration(size * ts)} analysed; no oscillation faster than "
-              f"{_duration(samples * ts / CYCLES_TO_SEE)} so far; slower ones need 3 cycles: "
-              f"waiting up to {_duration((size - samples) * ts)} for the full "
-              f"window, which sees periods up to {_duration(size * ts / CYCLES_TO_SEE)}")
+def warming_up(a: Assessment, samples: int, size: int, ts: float, fill: float, *,
+               short: TooShort | None = None) -> Assessment:
+    """``a`` as ``warming_up``: the window's ``samples`` (of ``size``) are too short to judge
+    (``short``: why, by :func:`stiction.diagnosis.enough.too_short`), or hold no oscillation
+    yet while a slower one may need more. The reason says how full the window is and what it
+    waits for (under the journal's 200 characters); the analysis's own reason stays in the
+    evidence's notes."""
+    head = (f"warming up: window fill {fill:.0%}, {duration(samples * ts)} of "
+            f"{duration(size * ts)} analysed; ")
+    if short is None:
+        reason = (f"{head}no oscillation faster than {duration(samples * ts / SEE_CYCLES)} so "
+                  f"far; slower ones need 3 cycles: waiting up to "
+                  f"{duration((size - samples) * ts)} for the full window, which sees "
+                  f"periods up to {duration(size * ts / SEE_CYCLES)}")
+    else:
+        scale = duration((short.scale or 0.0) * ts)
+        why = {"samples": f"a verdict needs {JUDGE_SAMPLES} samples",
+               "cycles": f"its cycle of {scale} shows in {SEE_CYCLES:g} cycles",
+               "movement": f"OP and PV move on a {scale} time scale (a cycle that slow "
+                           f"shows in {SEE_CYCLES:g} of it)"}[short.basis]
+        reason = (f"{head}{why}: judged in {duration((min(short.need, size) - samples) * ts)} "
+                  f"at the earliest, calm only when full in {duration((size - samples) * ts)}")
     return dataclasses.replace(a, verdict=Verdict.WARMING_UP, reason=reason)
-
-
-def _duration(seconds: float) -> str:
-    """``0.4 s``, ``45 s``, ``4 min``, ``1 h 50 min``, ``2 h``."""
-    if seconds < 10:
-        return f"{seconds:.2g} s"
-    s = round(seconds)
-    if s < 120:
-        return f"{s} s"
-    minutes = round(s / 60)
-    hours, rest = divmod(minutes, 60)
-    if hours == 0:
-        return f"{minutes} min"
-    return f"{hours} h" + (f" {rest} min" if rest else "")

@@ -9,16 +9,19 @@ windows). An output plugin module (registered by one line in
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import os
 from collections.abc import Awaitable, Callable
-from typing import Protocol
+from pathlib import Path
+from typing import BinaryIO, Protocol
 
 from ..config.model import Config
 from ..core.store import ResultStore
 from ..core.ticks import ProcessClock
 from ..core.windows import LoopGroup
 
-__all__ = ["Binding", "Sink", "Swap"]
+__all__ = ["Binding", "Sink", "Swap", "write_atomically"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,3 +59,31 @@ class Sink(Protocol):
 
     async def stop(self) -> None:
         """Flush and close; never raises."""
+
+
+def write_atomically(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]) -> int:
+    """Write a file so that a crash (even SIGKILL) leaves the old one or the new one:
+    ``write(f)`` fills a temporary file in the same folder (``.NAME.tmp-PID``), which is
+    ``fsync``'d and renamed over ``path``, then the folder is ``fsync``'d. Returns the
+    bytes written. (The state file does the same in its own module.)"""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_name(f".{target.name}.tmp-{os.getpid()}")
+    try:
+        with open(tmp, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+            size = f.tell()
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    with contextlib.suppress(OSError):  # not every file system lets a directory be synced
+        fd = os.open(target.parent, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    return size

@@ -29,10 +29,13 @@ from prometheus_client import CollectorRegistry
 
 from ..config import Config
 from ..config.plugins import output_plugin
+from ..core.findings import FindingsBook
 from ..core.store import ResultStore
 from ..inputs.base import Source
 from ..outputs.base import Binding, Sink
 from ..outputs.prometheus import GatewayMetrics
+from .findings import load_findings, observe, read_configured, reload_findings
+from .logs import clip
 from .poller import Clocks, DevicePoller
 from .reload import (
     ReloadRefused,
@@ -51,7 +54,8 @@ log = logging.getLogger("gateway.app")
 class Gateway:
     """One running gateway for ``config``; see the module docstring.
 
-    ``persist`` adds the state-file output (``stiction-gateway run`` sets it); ``outputs``
+    ``persist`` adds the state file and the verdict history (``stiction-gateway run`` sets
+    it); ``outputs``
     names further outputs of :data:`gateway.config.plugins.OUTPUTS` (e.g. ``memory``).
     ``executor`` replaces the analysis process pool (tests: one thread); ``clocks`` the
     pollers' clocks."""
@@ -67,15 +71,19 @@ class Gateway:
         self._phase_ref: float | None = None
         self.runtime = build_runtime(config, wall=self._wall(), metrics=self.metrics,
                                      clocks=clocks)
-        names = [*(["statefile"] if persist else []), "modbus_server", "prometheus", *outputs]
-        self.sinks = create_sinks(names, self.runtime.binding(), registry=self.registry,
-                                  metrics=self.metrics, serve_http=serve_http)
+        # the engineer's findings and the history of the verdicts they are compared with
+        self.findings = observe(self.runtime.store, FindingsBook())
+        self.sinks = create_sinks(sink_names(persist, outputs), self.runtime.binding(),
+                                  registry=self.registry,
+                                  metrics=self.metrics, serve_http=serve_http,
+                                  findings=self.findings)
         g = config.gateway
         self.scheduler = AnalysisScheduler(
             self.runtime.groups, self.runtime.store,
             interval_wall_s=g.analysis_interval_s / g.time_scale, workers=g.analysis_workers,
             batch_size=batch_size, analyze=analyze, executor=executor,
-            on_duration=self.metrics.analysis_duration.observe, plant=config.plant)
+            on_duration=self.metrics.analysis_duration.observe, plant=config.plant,
+            hysteresis=config.hysteresis, on_verdict=self.metrics.count_verdict)
         self.reloads = 0
         self.polling = asyncio.Event()  # set once every poller has completed a tick
         self._polls = PollTasks()
@@ -109,14 +117,13 @@ class Gateway:
 
     @property
     def metrics_port(self) -> int | None:
-        port: int | None = getattr(self.sinks["prometheus"], "port", None)
-        return port
+        return getattr(self.sinks["prometheus"], "port", None)
 
     def align_polls(self, phase_ref: float) -> None:
-        """Poll on the grid ``phase_ref + n * period`` (loop.time() seconds) instead of
-        from start-up. The demo and tests set it half a step after the simulated PLC's
-        steps, so that at high ``time_scale`` every simulated sample is read exactly once.
-        Devices added by a reload follow the same grid."""
+        """Poll on the grid ``phase_ref + n * period`` (loop.time() seconds), not from
+        start-up: the demo and tests set it half a step after the simulated PLC's steps,
+        so that at high ``time_scale`` every simulated sample is read exactly once (devices
+        added by a reload too)."""
         self._phase_ref = phase_ref
         for p in self.pollers:
             p.grid = type(p.grid)(p.period, phase_ref)
@@ -124,6 +131,7 @@ class Gateway:
     # ------------------------------------------------------------------ life cycle
 
     async def __aenter__(self) -> Gateway:
+        load_findings(self.findings, read_configured(self.config))  # never fails
         try:  # sinks first: the state file is restored before anything else takes time
             binding = self.runtime.binding()
             for sink in self.sinks.values():
@@ -169,16 +177,7 @@ class Gateway:
                 await source.close()
         await self.scheduler.stop()
 
-    # ------------------------------------------------------------------ state, reload
-
-    @property
-    def saves(self) -> int:
-        return int(getattr(self.sinks.get("statefile"), "saves", 0))
-
-    async def save_state(self) -> int:
-        """Write the state file now (with ``persist``); returns its size in bytes."""
-        size: int = await self.sinks["statefile"].save()  # type: ignore[attr-defined]
-        return size
+    # ------------------------------------------------------------------ reload
 
     async def reload(self, source: str | os.PathLike[str] | Config) -> bool:
         """Apply a new config (a path or a parsed Config) as a transaction
@@ -199,6 +198,8 @@ class Gateway:
                 self.metrics.reload_failures.labels(stage="build").inc()
                 log.exception("reload of %s failed unexpectedly", source)
                 return False
+            finally:  # the findings of the config now in force, reloaded or kept
+                await reload_findings(self.config, self.findings)
             self.reloads += 1
             return True
 
@@ -217,7 +218,7 @@ class Gateway:
             for p in old.pollers:
                 p.resume()
             self._polls.start(old.pollers, due)
-            text = " ".join(str(exc).split())[:200]
+            text = clip(exc, 200)
             raise ReloadRefused("build", f"{config.source}: its runtime cannot be built: "
                                 f"{type(exc).__name__}: {text}") from exc
         for swap in swaps:  # the new listeners take over (the old ones serve until then)
@@ -226,12 +227,10 @@ class Gateway:
             except Exception:  # bound already: should not happen
                 log.exception("reload: a new listener could not take over")
         await _close_unused(old.sources.values(), new.sources.values())
+        observe(new.store, self.findings)
         self.runtime = new
         await _bind_all(self.sinks, new.binding())
-        g = config.gateway
-        self.scheduler.groups, self.scheduler.store = list(new.groups), new.store
-        self.scheduler.interval_wall_s = g.analysis_interval_s / g.time_scale
-        self.scheduler.plant = config.plant
+        self.scheduler.reconfigure(new.groups, new.store, config)
         # devices that stay keep their schedule (and their connection if their points are
         # unchanged); new devices start now
         self._polls.start(new.pollers, {n: d for n, d in due.items() if n in new.sources})
@@ -248,6 +247,13 @@ class Gateway:
         stale = int(self.store.stale.sum())
         return (f"polling {len(self.pollers)} devices ({up} up), {len(self.store.loops)} "
                 f"loops ({stale} stale)")
+
+
+def sink_names(persist: bool, outputs: Sequence[str]) -> list[str]:
+    """The outputs of a gateway: with ``persist`` the verdict history and the state file
+    (the history first: the state file's restored assessments extend it)."""
+    return [*(["verdicts", "statefile"] if persist else []), "modbus_server", "prometheus",
+            *outputs]
 
 
 def create_sinks(names: Sequence[str], binding: Binding, **options: Any) -> dict[str, Sink]:

@@ -1,4 +1,5 @@
-"""Log lines rate-limited per cause, so that no flood of events can flood the journal.
+"""Log lines rate-limited per cause, so that no flood of events can flood the journal; and
+the journal's texts on one line, never cut inside a word (:func:`clip`).
 
 :class:`RateLimit` is a :class:`logging.Filter` for the handlers of ``stiction-gateway
 run``: a *cause* is a logger, a level, a message template and its first argument (the
@@ -15,14 +16,44 @@ import logging
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["BURST", "MAX_CAUSES", "PERIOD_S", "RateLimit", "install_rate_limit",
-           "loop_exception_handler"]
+if TYPE_CHECKING:
+    from stiction import Assessment
+
+__all__ = ["BURST", "MAX_CAUSES", "MAX_TEXT", "PERIOD_S", "RateLimit", "clip",
+           "install_rate_limit", "loop_exception_handler", "sizes_text"]
 
 BURST = 20
 PERIOD_S = 60.0
 MAX_CAUSES = 10_000
+MAX_TEXT = 2000
+"""Characters of a text (a reason, an exception's message) in one journal line; a reason is
+a few hundred, so it is never cut."""
+
+
+def clip(text: object, limit: int = MAX_TEXT) -> str:
+    """``text`` on one line (white space collapsed): whole when it fits in ``limit``
+    characters, else cut at the last space before it and ended with `` ...``, never inside
+    a word (a single word longer than ``limit``, such as a client's bytes, is cut)."""
+    one = " ".join(str(text).split())
+    if len(one) <= limit:
+        return one
+    head = one[:limit - 4]
+    if " " in head:
+        head = head.rsplit(" ", 1)[0]
+    return f"{head} ..."
+
+
+def sizes_text(a: Assessment) -> str:
+    """The sizes of a verdict line as its registers hold them, their unit named once
+    (``fd 26.9, fs 29.9, J 6.0 % of span``), or "" when the valve was not sized."""
+    sizes = a.sizes()
+    if sizes is None:
+        return ""
+    parts = [f"{name} {value:.1f}" for name, value in
+             (("fd", sizes.fd), ("fs", sizes.fs), ("J", sizes.jump)) if value is not None]
+    return f"{', '.join(parts)} {sizes.unit}"
 
 
 class RateLimit(logging.Filter):
@@ -92,6 +123,6 @@ def loop_exception_handler(loop: asyncio.AbstractEventLoop, context: dict[str, A
             obj = getattr(obj, "_callback", obj)
         place = getattr(obj, "__qualname__", type(obj).__qualname__)
         break
-    text = " ".join(str(context.get("message", "")).split())[:200]
+    text = clip(context.get("message", ""), 200)
     cause = f"asyncio, {place}: {type(exc).__name__ if exc is not None else 'error'}"
     logging.getLogger("gateway.app").error("%s: %s", cause, text, exc_info=exc)

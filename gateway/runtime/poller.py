@@ -97,6 +97,7 @@ class DevicePoller:
         # a hard limit on one connect or read, whatever the source does with its timeout
         self.guard_s = 10.0 * device.timeout_s + 1.0
         self.connected = False
+        self.down_reason: str | None = None  # why the device is down (None while up)
         self.polls = self.good_polls = self.missed_ticks = 0
         self.ticks = 0  # polls and missed ticks: the stale flags count both
         self.reconnects = 0  # successful connects after the first
@@ -118,6 +119,7 @@ class DevicePoller:
     def take_over(self, old: DevicePoller) -> None:
         """Continue ``old``'s connection state (same device, same source) after a reload."""
         self.connected, self.link = old.connected, old.link
+        self.down_reason = old.down_reason
         self.report.take_over(old.report)
         self._connects = old._connects
 
@@ -242,14 +244,18 @@ class DevicePoller:
         err = exc if isinstance(exc, DeviceError) else DeviceError(
             name, "timeout", f"{what} took over {self.guard_s:g} s")
         self.report.failed(err)
-        if self.link.failed(err.kind, self._mono()()):
+        went_down = self.link.failed(err.kind, self._mono()())
+        if went_down or err.reason != self.down_reason:  # the outage, or its new cause
             again = ("polling on; its loops are device_down" if err.kind == "exception" else
                      f"retrying with backoff up to {self.link.backoff.cap_for(err.kind):g} s")
-            log.warning("device %s: down (%s): %s; %s", name, err.reason, err, again)
+            log.warning("device %s: %s (%s): %s; %s", name, "down" if went_down else
+                        "still down, now", err.reason, err, again)
+        self.down_reason = err.reason
 
     def _answered(self, result: ReadResult, seconds: float) -> None:
         self.report.answered(result, seconds)
         before = self.link.answered()
+        self.down_reason = None
         if before is False:
             log.warning("device %s: recovered", self.device.name)
         if before is not True:
@@ -309,7 +315,11 @@ class DeviceReport:
 
     def failed(self, err: DeviceError) -> None:
         """The device is down (again): ``stiction_device_up`` 0, and why, in the words of
-        the log line (``stiction_device_down_reason``)."""
+        the log line (``stiction_device_down_reason``); not also behind schedule (one fault,
+        one alert): its schedule is judged afresh once it answers again."""
+        if self.lag.behind:
+            self.lag = Lag(self.lag.period, self.lag.window_s)
+            self._behind(False)
         if self.metrics is not None:
             self.metrics.poll_errors.labels(device=self.name, kind=err.kind).inc()
             self.metrics.device_up.labels(device=self.name).set(0)

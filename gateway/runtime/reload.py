@@ -48,6 +48,7 @@ from ..errors import ConfigError
 from ..inputs.base import Source
 from ..outputs.base import Binding, Sink, Swap
 from ..outputs.prometheus import GatewayMetrics
+from .logs import clip
 from .poller import BACKOFF_BASE_S, Clocks, DevicePoller
 
 __all__ = ["LISTEN_SECTIONS", "MAX_PROBLEMS_LOGGED", "ReloadRefused", "Runtime",
@@ -78,8 +79,7 @@ def _problems_line(problems: Sequence[str]) -> str:
 
 
 def _unexpected(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text[:200]}"
+    return f"{type(exc).__name__}: {clip(exc, 200)}"
 
 
 async def read_new_config(path: str | os.PathLike[str]) -> Config:

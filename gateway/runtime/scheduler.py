@@ -10,8 +10,11 @@ which bounds the memory a round holds. A round that is still running when the ne
 makes that one wait (no pile-up). Workers run at a lower CPU priority (``nice`` +10 by
 default), so on a busy box the polling event loop wins a contested core and analysis only
 takes what is left, and they die with the gateway however it ends (:func:`die_with_parent`).
-Each verdict change of a loop is logged once, with its reason (not while the loop is
-``device_down``: the device's one line says why, not one line per loop).
+Each loop's verdict passes the verdict hysteresis (:mod:`gateway.core.hysteresis`: a change
+is published when it holds ``verdict_hysteresis.rounds`` rounds or its confidence moved by
+the margin; a judgement is held while the window warms up again) before the plant step and
+the store. Each published verdict change of a loop is logged once, with its reason (not while
+the loop is ``device_down``: the device's one line says why, not one line per loop).
 
 With ``plant.enabled`` (the default) a round ends with the plant-wide step
 (:mod:`gateway.core.plant`): the loops of each time base (poll interval and window length)
@@ -39,11 +42,13 @@ from typing import Any
 
 from stiction import Assessment
 
-from ..config.model import PlantSettings
+from ..config.model import Config, HysteresisSettings, PlantSettings
+from ..core.hysteresis import VerdictFilter
 from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolve
 from ..core.plant import PlantTracker, analyze_plant_job, plant_jobs
 from ..core.store import LoopResult, ResultStore
 from ..core.windows import LoopGroup
+from .logs import clip, sizes_text
 
 __all__ = ["DEFAULT_ANALYZE", "WORKER_NICE", "AnalysisScheduler", "die_with_parent",
            "log_verdict_change"]
@@ -114,7 +119,9 @@ class AnalysisScheduler:
                  on_duration: Callable[[float], None] | None = None,
                  nice: int = WORKER_NICE,
                  executor: Callable[[], Executor] | None = None,
-                 plant: PlantSettings | None = None) -> None:
+                 plant: PlantSettings | None = None,
+                 hysteresis: HysteresisSettings | None = None,
+                 on_verdict: Callable[[str], None] | None = None) -> None:
         self.groups = list(groups)
         self.store = store
         self.interval_wall_s = interval_wall_s
@@ -125,11 +132,23 @@ class AnalysisScheduler:
         self.nice = nice
         self.plant = plant if plant is not None else PlantSettings()
         self.tracker = PlantTracker()
+        # each loop's verdict passes it before it is published (core/hysteresis.py)
+        self.verdicts = VerdictFilter(hysteresis, on_count=on_verdict)
         self.rounds = 0
         self.last_round_s = 0.0
         self.last_plant_s = 0.0
         self._executor = executor
         self._pool: Executor | None = None
+
+    def reconfigure(self, groups: Sequence[LoopGroup], store: ResultStore, config: Config
+                    ) -> None:
+        """After a reload: the new runtime's windows and store, and the new settings (each
+        loop's verdict hysteresis state stays, by name)."""
+        g = config.gateway
+        self.groups, self.store = list(groups), store
+        self.interval_wall_s = g.analysis_interval_s / g.time_scale
+        self.plant = config.plant
+        self.verdicts.settings = config.hysteresis
 
     async def start(self) -> None:
         """Start the worker processes (and import the analysis in each) before polling."""
@@ -190,7 +209,11 @@ class AnalysisScheduler:
             finally:
                 sem.release()
             t = now()
-            for index, assessment, fill, samples, dur in results:
+            for index, analysed, fill, samples, dur in results:
+                shown = store.results[index]
+                assessment = self.verdicts.publish(
+                    store.loops[index], analysed, t,
+                    shown=None if shown is None else shown.assessment)
                 if held is not None:  # published after the plant step
                     held[index] = (assessment, t, fill, samples)
                 else:
@@ -199,6 +222,7 @@ class AnalysisScheduler:
                     self.on_duration(dur)
             done += len(results)
 
+        self.verdicts.keep(store.loops)
         # windows are copied batch by batch, only when a slot is free, so at most
         # 2 x workers batches of windows exist at once
         tasks = []
@@ -269,6 +293,6 @@ def log_verdict_change(loop: str, before: LoopResult | None, after: Assessment) 
     was = str(before.assessment.verdict) if before is not None else "none"
     if was == str(after.verdict):
         return
-    reason = " ".join(after.reason.split())
-    log.info("loop %s: verdict %s (was %s): %s", loop, after.verdict, was,
-             reason if len(reason) <= 200 else reason[:197] + "...")
+    sized = sizes_text(after)
+    log.info("loop %s: verdict %s (was %s)%s: %s", loop, after.verdict, was,
+             f", {sized} (as its registers)" if sized else "", clip(after.reason))

@@ -16,10 +16,12 @@ PLC (:mod:`gateway.wire.registers`) and the metrics server
   requests is answered nor read (one answer may exceed it: a /metrics page is queued whole).
 * **Limit**: at most ``max_connections`` at once. A newcomer beyond it closes the connection
   that costs the most (:meth:`Listener.victim`): first one that never completed a request
-  (a half-open connection, the longest idle first: reason ``limit``), then one whose
-  answers are queued unread (most bytes queued, then the oldest pending: ``unread``), then
-  the busiest (highest recent request rate: ``busiest``). A quiet client (a SCADA poller
-  reading once a second) is the last to go.
+  (half-open, the longest idle first: reason ``limit``), then one whose answers are queued
+  unread (most bytes queued, then the oldest pending: ``unread``), then the busiest
+  (highest recent request rate: ``busiest``). The last few to connect (an eighth of the
+  slots) are not yet half-open for :data:`JUST_CONNECTED_S`: a reconnect storm closes its
+  busiest, never a client's new connection before its first request (a flood of half-open
+  ones still loses its oldest first). A quiet client is the last to go.
 * **Idle timeout**: a connection with no byte received for ``idle_timeout_s`` is closed,
   unless an answer is being prepared for it (a half-open or trickling connection costs at
   most that long).
@@ -47,8 +49,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["CLOSE_REASONS", "CONN_TURN_REQUESTS", "ERROR_STAGES", "TURN_REQUESTS",
-           "WRITE_HIGH_WATER", "Conn", "Listener", "ListenerStats", "report"]
+__all__ = ["CLOSE_REASONS", "CONN_TURN_REQUESTS", "ERROR_STAGES", "JUST_CONNECTED_S",
+           "TURN_REQUESTS", "WRITE_HIGH_WATER", "Conn", "Listener", "ListenerStats", "report"]
 
 log = logging.getLogger("gateway.server")
 
@@ -66,6 +68,7 @@ TURN_REQUESTS = 32  # requests a listener answers per turn of the event loop, al
 CONN_TURN_REQUESTS = 4  # ... of which one client at most before the next one's turn
 RATE_TAU_S = 10.0  # time constant of a connection's request rate (eviction)
 RATE_MIN_AGE_S = 1.0  # a young connection's rate is counted over at least this long
+JUST_CONNECTED_S = 0.5  # a client's first request may take this long after it connects
 
 
 def report(server: str, place: str, exc: BaseException) -> None:
@@ -362,15 +365,17 @@ class Listener:
     def victim(self, now: float) -> tuple[Conn | None, str]:
         """The connection a newcomer over the limit closes, and why (see the module)."""
         never = [c for c in self.conns if not c.useful and not c.busy]
-        if never:
-            return min(never, key=lambda c: c.last), "limit"
-        unread = [c for c in self.conns if c.queued() >= WRITE_HIGH_WATER]
-        if unread:
+        young = sorted((c for c in never if now - c.born < JUST_CONNECTED_S), key=lambda c: c.born)
+        kept = set(young[-max(1, self.max_connections // 8):])  # not yet half-open
+        half_open = [c for c in never if c not in kept]
+        if half_open:
+            return min(half_open, key=lambda c: c.last), "limit"
+        if unread := [c for c in self.conns if c.queued() >= WRITE_HIGH_WATER]:
             return max(unread, key=lambda c: (c.queued(), now - (c.pending_since or now))), \
                 "unread"
-        if not self.conns:
-            return None, "limit"
-        return max(self.conns, key=lambda c: (c.rate(now), now - c.last)), "busiest"
+        if rest := [c for c in self.conns if c not in kept]:
+            return max(rest, key=lambda c: (c.rate(now), now - c.last)), "busiest"
+        return (min(kept, key=lambda c: c.born), "limit") if kept else (None, "limit")
 
     def forget(self, conn: Conn) -> None:
         self._remove(conn)

@@ -1,4 +1,4 @@
-"""`stiction`: offline tools (simulate, signature, analyze, plant, reproduce).
+"""`stiction`: offline tools (simulate, signature, analyze, plant, reproduce, valve-test).
 
 Exit status: 0 success, 2 bad arguments or unusable input (the message names the problem).
 """
@@ -16,6 +16,7 @@ from .analyze import add_analyze
 from .plant import add_plant
 from .reproduce import add_reproduce
 from .simulate import add_signature, add_simulate
+from .valvetest import add_valve_test
 
 __all__ = ["build_parser", "main"]
 
@@ -26,6 +27,7 @@ _COMMANDS: list[Callable[[Subparsers], None]] = [
     add_analyze,
     add_plant,
     add_reproduce,
+    add_valve_test,
 ]
 
 

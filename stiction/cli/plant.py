@@ -49,6 +49,7 @@ def add_plant(sub: Subparsers) -> None:
                    help="loops whose process integrates (levels)")
     p.add_argument("--cascade", nargs="+", default=[], metavar="OUTER=INNER",
                    help="cascades: the outer loop's OP is the inner loop's setpoint")
+    historian.add_reading_options(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", type=Path, default=None,
                    help="draw the spectral map (loops x frequency, the groups marked) to FILE")
@@ -73,7 +74,7 @@ def loop_columns(header: list[str]) -> tuple[dict[str, tuple[int, int]], dict[st
 
 def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, np.ndarray]],
                                              dict[str, np.ndarray], list[str]]:
-    table = historian.read_table(args.file)
+    table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     notes = list(table.notes)
     if args.time is not None:
         t_col: int | None = historian.column(table, args.time, "--time")

@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from ..models.signature import valve_signature
-from ..scenarios.named import SCENARIOS, scenario, simulate
+from ..scenarios.named import SCENARIOS, Scenario, SimResult, scenario, simulate
+from ..scenarios.steptest import simulate_step_test
+from ..valvetest.sequence import step_test_levels
 from ._common import Subparsers, UsageError, param_option, pyplot
 from .historian import write_export
 
@@ -33,6 +35,11 @@ def add_simulate(sub: Subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--duration", type=float, default=None, help="seconds (default: scenario's)")
     p.add_argument("-o", "--output", required=True, type=Path, help="CSV file to write")
+    p.add_argument("--step-test", metavar="HOLD_S", type=float, default=None,
+                   help="a step test instead: the loop in manual, OP playing the default "
+                   "sequence (stiction.valvetest.step_test_levels) from 50 %%, each level held "
+                   "HOLD_S seconds; writes t, op, pv, vp (the valve position), for "
+                   "`stiction valve-test`")
     p.add_argument("--historian", metavar="TAG", default=None,
                    help="write OP and PV as a process historian exports them instead: "
                    "columns Timestamp;TAG.OP;TAG.PV, ';'-separated with decimal commas, ISO "
@@ -44,15 +51,20 @@ def add_simulate(sub: Subparsers) -> None:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     overrides = {k: getattr(args, k) for k in _SIM_PARAMS if getattr(args, k) is not None}
     sc = scenario(args.scenario, **overrides)
-    res = simulate(sc, duration=args.duration, noise=args.noise, seed=args.seed)
-    data = np.column_stack([res.t, res.sp, res.op, res.pv, res.vp])
+    if args.step_test is not None:
+        res = _step_test(sc, args)
+        head, data = ["t", "op", "pv", "vp"], np.column_stack([res.t, res.op, res.pv, res.vp])
+    else:
+        res = simulate(sc, duration=args.duration, noise=args.noise, seed=args.seed)
+        head = ["t", "sp", "op", "pv", "vp"]
+        data = np.column_stack([res.t, res.sp, res.op, res.pv, res.vp])
     try:
         with args.output.open("w", newline="") as fh:
             if args.historian is not None:
                 write_export(fh, args.historian, res.t, res.op, res.pv)
             else:
                 w = csv.writer(fh)
-                w.writerow(["t", "sp", "op", "pv", "vp"])
+                w.writerow(head)
                 w.writerows(np.round(data, 9).tolist())
     except OSError as exc:
         raise UsageError(f"cannot write {args.output}: {exc.strerror}") from exc
@@ -60,6 +72,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     print(f"wrote {len(res.t)} samples ({res.t[-1] + sc.ts:g} s, Ts {sc.ts:g} s) of scenario "
           f"{sc.name} ({sticky}, noise SD {args.noise:g}) to {args.output}")
     return 0
+
+
+def _step_test(sc: Scenario, args: argparse.Namespace) -> SimResult:
+    """The scenario's valve and process step-tested in manual (no controller)."""
+    hold = round(args.step_test / sc.ts)
+    if hold < 5:
+        raise UsageError(f"--step-test: {args.step_test:g} s holds fewer than 5 samples of "
+                         f"{sc.ts:g} s")
+    run = simulate_step_test(sc.valve(), step_test_levels(), hold=hold, ts=sc.ts, kp=sc.kp,
+                             tau=sc.tau, theta=sc.theta, integrating=sc.integrating,
+                             noise_sd=args.noise, seed=args.seed)
+    return SimResult(run.t, np.full(run.t.size, np.nan), run.op[0], run.pv[0], run.vp[0], sc)
 
 
 # ----------------------------------------------------------------------------- signature

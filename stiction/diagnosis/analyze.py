@@ -1,16 +1,21 @@
 """``analyze``: one window of OP/PV in, one :class:`~stiction.Assessment` out.
 
 The path of a window: the data-quality gates (:mod:`.quality`, :mod:`.responding`); the
-cycle (:func:`stiction.signal.cycle.find_cycle`); every registered detector
-(:mod:`.evidence`, :mod:`stiction.detectors.registry`); one confidence from what they saw
-(:mod:`.features`, the learned :mod:`.model`); when it says stiction, the size
-(:mod:`stiction.quantify.route`); the reason in words (:mod:`.reasons`).
+cycle (:func:`stiction.signal.cycle.find_cycle`); whether the window holds enough of its loop
+to judge (:mod:`.enough`); every registered detector (:mod:`.evidence`,
+:mod:`stiction.detectors.registry`); one confidence from what they saw (:mod:`.features`, the
+learned :mod:`.model`); when it says stiction, the size (:mod:`stiction.quantify.route`);
+the reason in words (:mod:`.reasons`). A window found calm in which a live PV held within
+its noise while OP ramped on is a valve not responding
+(:func:`.responding.held_while_op_ran`); one too short to judge is ``bad_data``, saying what
+would be enough.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -25,10 +30,12 @@ from ..quantify.hewang import Quantification, quantify
 from ..quantify.route import limit_cycle, size_valve
 from ..signal.cycle import Cycle, find_cycle
 from . import model as learned
+from .enough import SEE_CYCLES, movement_scales, too_short
 from .evidence import Findings, gather
 from .features import features
 from .quality import check_quality
 from .reasons import not_stiction, size_text, stiction_head
+from .responding import held_while_op_ran
 
 __all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
 
@@ -45,6 +52,8 @@ class Details:
     quantification: Quantification | None = None
     cycle: Cycle | None = None
     findings: Findings | None = None
+    parts: Mapping[str, float] | None = None  # what weighed in the decision (reasons.weighed)
+    start: int = 0  # index of op[0] in the caller's window (a leading gap trimmed)
 
 
 def _series(name: str, value: ArrayLike) -> FloatArray:
@@ -152,7 +161,9 @@ def analyze(
     -------
     Assessment
         ``verdict`` with a one-sentence ``reason``; sizes only when the verdict is
-        ``stiction``.
+        ``stiction``. A window too short to judge (fewer than 64 samples, or, without a
+        cycle, no more than about one of its own movements: :mod:`.enough`) is
+        ``bad_data``, its reason saying how long would be enough.
 
     Raises
     ------
@@ -183,15 +194,41 @@ def analyze_details(
         op, pv, ts=ts, kp=kp, delay=delay, process=process, op_range=op_range, k=k)
     integrating = process == "integrating"
     q = check_quality(op_a, pv_a, span)
-    warnings = list(q.warnings)
+    warnings = tuple(q.warnings)
     if q.not_responding is not None:
         return Details(Assessment(Verdict.VALVE_NOT_RESPONDING, q.not_responding.reason(
-            q.op.size), warnings=tuple(warnings)), q.op, q.pv)
+            q.op.size), warnings=warnings), q.op, q.pv, start=q.start)
     if q.reason is not None:
-        return Details(Assessment(Verdict.BAD_DATA, q.reason, warnings=tuple(warnings)))
+        return Details(Assessment(Verdict.BAD_DATA, q.reason, warnings=warnings))
     op_c, pv_c = q.op, q.pv
     cycle = find_cycle(op_c, pv_c, integrating=integrating)
+    # the window's own cycle passed the ACF's test of enough cycles: only what has no cycle
+    # (or too few samples) is too short here
+    short = too_short(op_c.size, scales=None if cycle.cycling else movement_scales(op_c, pv_c))
+    if short is not None and short.withdraws(Verdict.STICTION):  # too short for any verdict
+        return Details(Assessment(Verdict.BAD_DATA, short.reason(ts_), warnings=warnings),
+                       op_c, pv_c, cycle=cycle, start=q.start)
     found = gather(op_c, pv_c, cycle, integrating=integrating, ts=ts_)
+    d = dataclasses.replace(_decide(
+        op_c, pv_c, cycle, found, ts=ts_, kp=kp_, delay=delay_, span=span, k=k_,
+        integrating=integrating, force_quantify=force_quantify, warnings=warnings),
+        start=q.start)
+    if d.assessment.verdict == Verdict.NOT_OSCILLATING and (
+            held := held_while_op_ran(op_c, pv_c, span=span)) is not None:  # stuck, not calm
+        a = Assessment(Verdict.VALVE_NOT_RESPONDING, held.reason(op_c.size),
+                       warnings=warnings, evidence=d.assessment.evidence)
+        return dataclasses.replace(d, assessment=a)
+    if short is not None and short.withdraws(d.assessment.verdict):  # a part of a slow cycle
+        a = dataclasses.replace(d.assessment, verdict=Verdict.BAD_DATA,
+                                reason=short.reason(ts_), confidence=None)
+        return dataclasses.replace(d, assessment=a)
+    return d
+
+
+def _decide(op_c: FloatArray, pv_c: FloatArray, cycle: Cycle, found: Findings, *, ts: float,
+            kp: float | None, delay: float, span: float | None, k: float, integrating: bool,
+            force_quantify: bool, warnings: tuple[str, ...]) -> Details:
+    """The learned decision on a clean window's evidence, the size and the reason."""
     model = learned.load()
     x = features(found.evidence, found.results, cycle, op=op_c, pv=pv_c,
                  integrating=integrating)
@@ -201,41 +238,42 @@ def analyze_details(
     si = next(e.value for e in found.evidence if e.test == si_test)
     base: dict[str, Any] = {
         "oscillating": cycle.regular,
-        "period_s": None if cycle.period is None else cycle.period * ts_,
+        "period_s": None if cycle.period is None else cycle.period * ts,
         "stiction_index": si, "confidence": conf, "evidence": found.evidence}
     quant: Quantification | None = None
     if force_quantify and limit_cycle(cycle, op_c.size):
-        quant = quantify(op_c, pv_c, period=cycle.period or 0.0, ts=ts_, kp=kp_,
-                         delay=delay_, integrating=integrating, k=k_, pv_noise=found.noise[1])
+        quant = quantify(op_c, pv_c, period=cycle.period or 0.0, ts=ts, kp=kp,
+                         delay=delay, integrating=integrating, k=k, pv_noise=found.noise[1])
 
     if conf < model.stiction_at:
         verdict, reason = not_stiction(cycle, found.evidence, conf, parts,
-                                       model.no_stiction_at)
-        return Details(Assessment(verdict, reason, warnings=tuple(warnings), **base),
-                       op_c, pv_c, quant, cycle, found)
+                                       model.no_stiction_at,
+                                       reach_s=op_c.size / SEE_CYCLES * ts)
+        return Details(Assessment(verdict, reason, warnings=warnings, **base),
+                       op_c, pv_c, quant, cycle, found, parts)
 
-    size = size_valve(op_c, pv_c, cycle, quant=quant, ts=ts_, kp=kp_, delay=delay_,
-                      integrating=integrating, k=k_, pv_noise=found.noise[1],
+    size = size_valve(op_c, pv_c, cycle, quant=quant, ts=ts, kp=kp, delay=delay,
+                      integrating=integrating, k=k, pv_noise=found.noise[1],
                       fitted_valve=_fitted_valve(found), ellipse_band=_ellipse_band(found))
-    warnings.extend(size.warnings)
+    warnings = (*warnings, *size.warnings)
     head = stiction_head(conf, found.evidence, parts, cycle)
     if size.fd_op is None:
         return Details(Assessment(Verdict.STICTION, f"{head} Size: not sized, {size.method}.",
-                                  multi_jump=size.multi_jump, warnings=tuple(warnings), **base),
-                       op_c, pv_c, size.quant, cycle, found)
+                                  multi_jump=size.multi_jump, warnings=warnings, **base),
+                       op_c, pv_c, size.quant, cycle, found, parts)
     scale, unit = (1.0, "OP units") if span is None else (span / 100.0, "% of span")
 
     def frac(x: float | None) -> float | None:
         return None if x is None or span is None else x / span
 
     text = size_text(size.fd_op / scale, None if size.fs_op is None else size.fs_op / scale,
-                     unit, size.method, need_kp=size.fs_op is None and kp_ is None)
+                     unit, size.method, need_kp=size.fs_op is None and kp is None)
     return Details(Assessment(
         Verdict.STICTION, head + text,
         fd=frac(size.fd_op), fs=frac(size.fs_op), jump=frac(size.jump_op),
         fd_op=size.fd_op, fs_op=size.fs_op, cycles_used=size.cycles,
-        multi_jump=size.multi_jump, warnings=tuple(warnings), **base), op_c, pv_c, size.quant,
-        cycle, found)
+        multi_jump=size.multi_jump, warnings=warnings, **base), op_c, pv_c, size.quant,
+        cycle, found, parts)
 
 
 def _fitted_valve(found: Findings) -> tuple[float, float | None] | None:

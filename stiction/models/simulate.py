@@ -151,11 +151,15 @@ class LoopBank:
         """Time of the next sample, s."""
         return self.k * self.ts
 
-    def step(self, sp: ArrayLike | None = None, load: ArrayLike | None = None) -> StepOutput:
+    def step(self, sp: ArrayLike | None = None, load: ArrayLike | None = None,
+             manual: ArrayLike | None = None) -> StepOutput:
         """Advance every loop one sample; ``sp`` (PV units) replaces the setpoints if given;
         ``load`` (fraction of span, per loop) is added at the process input for this sample,
         on top of the sinusoidal and random loads of :class:`LoopParams` (for load shapes
-        those do not cover: random walks, steps, square waves, another loop's output)."""
+        those do not cover: random walks, steps, square waves, another loop's output).
+        ``manual`` (fraction of span, per loop; NaN: that loop stays in automatic) holds
+        loops in manual at that controller output, as an operator or a step test does; the
+        integral tracks it, so automatic resumes without a bump."""
         if sp is not None:
             self.sp = np.broadcast_to(np.asarray(sp, dtype=np.float64), (self.n,)).copy()
         extra = None if load is None else np.broadcast_to(
@@ -175,6 +179,13 @@ class LoopBank:
         saturated = raw != op
         winding_up = saturated & (np.sign(e) == np.sign(raw - op))
         self.integral = np.where(winding_up, self.integral, integral)
+        if manual is not None:
+            held = np.broadcast_to(np.asarray(manual, dtype=np.float64), (self.n,))
+            in_manual = ~np.isnan(held)
+            op = np.clip(np.where(in_manual, held, op), self.op_lo, self.op_hi)
+            tracks = in_manual & (self.kc != 0)  # bumpless transfer back to automatic
+            self.integral = np.where(
+                tracks, (op - self.x0) / np.where(tracks, self.kc, 1.0) - e, self.integral)
         self.valve_state = self.valve.step(self.valve_state, op)
         vp = self.valve.position(self.valve_state)
         load = np.where(

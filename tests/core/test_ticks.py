@@ -51,8 +51,10 @@ def test_backoff_is_capped_jittered_and_resets() -> None:
 
 def test_a_refused_login_backs_off_longer() -> None:
     b = Backoff(base=0.5, factor=2.0, cap=0.5, rng=random.Random(2))
-    for _ in range(10):
-        b.next_delay("auth")
+    delays = [b.next_delay("auth") for _ in range(10)]
+    # from the first refusal on, 30-60 s: retried, never sooner (nor later: issue 31, a
+    # delay of 1e9 passed every test)
+    assert all(AUTH_RETRY_CAP_S / 2 <= d <= AUTH_RETRY_CAP_S for d in delays), delays
     assert b.ceiling("connect") == 0.5
     assert b.ceiling("auth") == AUTH_RETRY_CAP_S  # at least a minute: no account lock-out
     assert Backoff(cap=300.0).cap_for("auth") == 300.0

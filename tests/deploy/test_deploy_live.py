@@ -17,6 +17,7 @@ next to the running Python, i.e. this checkout's .venv).
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
 import math
 import os
 import re
@@ -160,6 +161,11 @@ def stack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Stack]:
         state_file=str(work / "gateway.state"),
         site=SITE,  # stiction_build_info{site}: the dashboards' $site variable has a value
     )
+    # issue 30: the crew found the sticky valve sticking (the loop dashboard's findings
+    # panels, the alerts' finding label)
+    (work / "findings.csv").write_text(f"loop,date,finding,fd,fs,by,note\n{STICKY},"
+                                       f"{dt.date.today()},stiction,25,28,test,live\n")
+    gw_cfg["findings"] = "findings.csv"
     gw_cfg["metrics"]["listen"] = f"127.0.0.1:{metrics_port}"
     gw_cfg["modbus_server"]["listen"] = f"127.0.0.1:{result_port}"
     (work / "gateway.yaml").write_text(yaml.safe_dump(gw_cfg, sort_keys=False))
@@ -310,6 +316,7 @@ def test_stiction_alerts_fire_for_the_sticky_loop_only(stack: Stack) -> None:
         if a["labels"]["alertname"] == "LoopFrictionAboveThreshold"
     ]  # fmt: skip
     assert alert["annotations"]["summary"].startswith(f"Loop {STICKY}: valve dynamic friction fd")
+    assert alert["labels"]["finding"] == "stiction"  # the crew's finding, for Alertmanager
 
 
 # ------------------------------------------------------------------ mbpoll vs /metrics

@@ -23,6 +23,7 @@ The tests share the fleet (module scope) and run in file order; the last ones ki
 from __future__ import annotations
 
 import dataclasses
+import datetime as dt
 import signal
 import subprocess
 import time
@@ -140,6 +141,11 @@ def _start_site(site: Site, work: Path, vm: VictoriaMetrics) -> None:
     cfg["gateway"].update(analysis_interval_s=ANALYSIS_INTERVAL_S, time_scale=TIME_SCALE,
                           state_file=str(d / "gateway.state"), analysis_workers=1,
                           site=site.name, **({"area": site.area} if site.area else {}))
+    if site.sticky:  # issue 30: the crew's finding on the first sticky valve (the loop
+        # dashboard's findings panels read it from VictoriaMetrics)
+        (d / "findings.csv").write_text(f"loop,date,finding,fd,fs,by,note\n{site.sticky[0]},"
+                                        f"{dt.date.today()},stiction,25,28,test,fleet\n")
+        cfg["findings"] = "findings.csv"
     metrics_port = free_port()
     cfg["metrics"]["listen"] = f"127.0.0.1:{metrics_port}"
     cfg["modbus_server"]["listen"] = f"127.0.0.1:{free_port()}"

@@ -1,6 +1,6 @@
 """Issue 6 item 5: the result server under hostile input.
 
-A gateway (polling a scripted PLC every 50 ms) runs in its own process. Hypothesis
+A gateway (polling a scripted PLC every 100 ms) runs in its own process. Hypothesis
 (derandomised, no example database, ``MAX_EXAMPLES`` inputs) throws at its result server:
 random bytes, MBAP frames with random function codes and payloads and wrong length fields,
 truncated frames, reads for wrong unit ids, oversize and out-of-range reads, and well-formed
@@ -34,7 +34,8 @@ from stiction import Assessment, Verdict
 MAX_EXAMPLES = 4000
 WRITE_CODES = (5, 6, 15, 16, 22, 23)
 N_LOOPS = 6
-PERIOD = 0.05
+PERIOD = 0.1
+LATENESS_BOUND_S = 0.05  # how late a tick may start while the server is fuzzed
 
 
 def _gateway_process(conn: Any) -> None:
@@ -201,7 +202,7 @@ def test_result_server_survives_hostile_input() -> None:
         if proc.is_alive():
             proc.kill()
     starts = stats["starts"]
-    late = lateness(starts, PERIOD)
+    late, skipped = lateness(starts, PERIOD)
     missed, errors, stale = stats["missed"], stats["errors"], stats["stale"]
     refused_at_server = stats["refused"]
     total = sum(tried.values())
@@ -215,5 +216,5 @@ def test_result_server_survives_hostile_input() -> None:
     assert all(ok)
     assert proc.exitcode == 0  # the gateway shut down cleanly afterwards
     np.testing.assert_array_equal(stats["image"], image)  # nothing was written
-    assert errors == 0 and missed == 0 and not stale
-    assert float(late.max()) < 0.05
+    assert errors == 0 and missed == 0 and skipped.sum() == 0 and not stale
+    assert float(late.max()) < LATENESS_BOUND_S

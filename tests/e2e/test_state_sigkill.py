@@ -4,18 +4,15 @@ start restores it."""
 
 from __future__ import annotations
 
-import contextlib
-import os
-import signal
 import time
 from pathlib import Path
 
 import pytest
 import yaml
 from reliability_helpers import (
-    children,
     device,
     raw_config,
+    sigkill,
     sim_loops,
     start_gateway,
     start_plc_sim,
@@ -57,12 +54,7 @@ def test_sigkill_loses_at_most_one_persist_interval(tmp_path: Path) -> None:
                 time.sleep(0.05)  # a few writes (how soon depends on the machine's load) ...
             time.sleep(1.37)  # ... then one more, and kill somewhere between two
             kill_wall = time.time()
-            workers = children(gw.pid)  # SIGKILL orphans them: systemd's KillMode=mixed
-            os.kill(gw.pid, signal.SIGKILL)  # would end them, here the test does
-            gw.wait(10)
-            for pid in workers:
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(pid, signal.SIGKILL)
+            sigkill(gw)
         finally:
             stop(gw)
         _header, arrays = read_state(state)

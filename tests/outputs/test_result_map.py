@@ -20,7 +20,7 @@ from gateway_helpers import run
 
 from gateway.config import load_config, parse_config
 from gateway.core.plantview import PlantGroup, PlantView
-from gateway.outputs.modbus_server.resultmap import COLUMNS, layout_markdown, map_rows
+from gateway.outputs.modbus_server.resultmap import COLUMNS, READ_WITH, layout_markdown, map_rows
 from gateway.runtime.gateway import Gateway
 from gateway.wire.results import LAYOUT, VERDICT_CODES, block_values
 from stiction import Assessment, Verdict
@@ -45,6 +45,17 @@ def config_yaml(word_order: str) -> dict[str, object]:
                    "pv": {"column": 3}, "window_s": 60, "kp": 1.0, "result_unit_id": 2,
                    "result_address": 300}],
     }
+
+
+def test_each_register_says_holding_or_input() -> None:
+    """Issue 32 item 10: the map did not say input or holding registers. Both hold the same
+    values; each row gives the register's 1-based reference in each table."""
+    c = parse_config(config_yaml("big"), "gw.yaml")
+    row = next(r for r in map_rows(c) if r.loop == "FIC102" and r.field == "fd_percent")
+    assert (row.register, row.holding, row.input) == (304, 400305, 300305)
+    assert dict(zip(COLUMNS, row.cells(), strict=True))["holding"] == "400305"
+    assert "holding registers (function code 3" in READ_WITH
+    assert "input registers (function code 4" in READ_WITH
 
 
 def test_rows_follow_the_layout() -> None:
@@ -84,9 +95,11 @@ def test_result_map_cli_table_and_csv(tmp_path: Path) -> None:
                          capture_output=True, text=True, timeout=60, check=False)
     assert res.returncode == 0, res.stderr
     lines = res.stdout.splitlines()
-    assert lines[0].split() == list(COLUMNS)
-    assert lines[1].split()[:6] == ["FIC102", "2", "300", "0", "code", "uint16"]
-    assert len(lines) == 1 + len(LAYOUT)
+    assert lines[0] == READ_WITH
+    assert lines[1].split() == list(COLUMNS)
+    assert lines[2].split()[:8] == ["FIC102", "2", "300", "400301", "300301", "0", "code",
+                                    "uint16"]
+    assert len(lines) == 2 + len(LAYOUT)
     res = subprocess.run([*CLI, "result-map", "--config", str(path), "FIC999"],
                          capture_output=True, text=True, timeout=60, check=False)
     assert res.returncode == 2

@@ -169,7 +169,9 @@ def test_a_running_gateway_reloads_and_refuses_bad_files(
     # across the rebuild: test_build_runtime_... above); here, on a shared box, a 50 ms
     # tick may be starved by other processes (7 of about 15 once in CI): most must run
     assert out["missed"] <= ticks / 2
-    assert float(lateness(out["starts"], 0.05).max()) < 0.05
+    late, skipped = lateness(out["starts"], 0.05)
+    assert skipped.sum() == out["missed"]  # a tick more than 25 ms late would be one more
+    assert float(late[skipped == 0].max()) < 0.025  # the others: within half a period
     # the bad file: refused with every problem, the running config stays, polls go on
     assert out["bad_reload"] is False
     assert out["config_after_bad"].endswith("second.yaml")

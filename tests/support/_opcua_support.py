@@ -91,3 +91,25 @@ def run(coro: Coroutine[Any, Any, T], timeout: float = 30.0) -> T:
             return await coro
 
     return asyncio.run(bounded())
+
+
+def expired_copy(cert_path: Path, key_path: Path, out: Path, *, days_ago: int = 1) -> Path:
+    """A copy of the certificate ``cert_path`` (same subject, key and extensions, signed
+    again with ``key_path``) whose validity ended ``days_ago`` days ago (DER)."""
+    import datetime  # noqa: PLC0415
+
+    from cryptography import x509  # noqa: PLC0415
+    from cryptography.hazmat.primitives import hashes, serialization  # noqa: PLC0415
+
+    from gateway.wire.certs import load_certificate_file, load_private_key_file  # noqa: PLC0415
+
+    cert, key = load_certificate_file(cert_path), load_private_key_file(key_path)
+    now = datetime.datetime.now(datetime.UTC)
+    builder = (x509.CertificateBuilder().subject_name(cert.subject).issuer_name(cert.issuer)
+               .public_key(cert.public_key()).serial_number(x509.random_serial_number())
+               .not_valid_before(now - datetime.timedelta(days=30 + days_ago))
+               .not_valid_after(now - datetime.timedelta(days=days_ago)))
+    for ext in cert.extensions:
+        builder = builder.add_extension(ext.value, critical=ext.critical)
+    out.write_bytes(builder.sign(key, hashes.SHA256()).public_bytes(serialization.Encoding.DER))
+    return out

@@ -23,13 +23,13 @@ from asyncua import ua
 from asyncua.client.client import Client
 from asyncua.client.ua_client import UaClientState
 
-from ...core.points import PointSpec
+from ...core.points import PointSpec, Quality
 from ...errors import DeviceError
 from ..base import ReadResult
 from .config import OpcUaDeviceConfig, OpcUaPoint
 from .errors import map_error, status_name
 from .session import discard, new_client, secure
-from .values import StatusLog, convert
+from .values import StatusLog, convert, refused
 
 __all__ = ["OpcUaInput"]
 
@@ -57,6 +57,7 @@ class OpcUaInput:
         self._read_index: list[int] = []  # point indexes read, in request order
         self._chunks: list[list[Any]] = []  # asyncua Node objects per Read call
         self._status = StatusLog(self.name, self.points, self._node_ids)
+        self._last_status = self._status.status  # of the last read (probe shows it)
 
     async def __aenter__(self) -> OpcUaInput:
         """``async with OpcUaInput(...) as source``: connected inside, closed after."""
@@ -101,13 +102,20 @@ class OpcUaInput:
             raise DeviceError(self.name, "protocol", f"the server answered {len(results)} "
                               f"values for {len(self._read_index)} nodes")
         values, quality, status = convert(results, self._read_index, len(self.points))
+        self._last_status = status
+        err = refused(status, self.points, self._node_ids, device=self.name,
+                      endpoint=self.config.endpoint)
+        if err is not None:  # serves nothing: one device error, not a line per point
+            quality[:] = Quality.NO_COMM
+            return ReadResult(t=t, values=values, quality=quality,
+                              requests=len(self._chunks), errors=(err,))
         self._status.update(status)
         return ReadResult(t=t, values=values, quality=quality, requests=len(self._chunks))
 
     def point_status(self) -> list[str]:
         """Per point, the StatusCode of its last read when not Good ('' when Good)."""
         return [status_name(int(c)) if int(c) & 0xC0000000 else ""
-                for c in self._status.status]
+                for c in self._last_status]
 
     async def close(self) -> None:
         """Close the session; never raises."""

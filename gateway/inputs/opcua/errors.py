@@ -56,12 +56,20 @@ def _status_error(name: str, *, device: str, doing: str, security: OpcUaSecurity
                            f"security.password_file")
     if name.startswith(("BadCertificate", "BadSecurity", "BadNoValidCertificates",
                         "BadApplicationSignatureInvalid")):
+        if name == "BadCertificateTimeInvalid":
+            mine = (f": the gateway's certificate {security.certificate} has expired or is "
+                    "not valid yet; make a new one (stiction-gateway opcua-cert) and have "
+                    "the server trust it" if security is not None else "")
+            return DeviceError(device, "auth", f"the server refused the gateway's "
+                               f"certificate ({name}){mine}",
+                               reason="gateway certificate expired")
         mine = ""
         if security is not None:
             mine = (f": make the server trust the gateway's certificate "
                     f"{security.certificate}")
         return DeviceError(device, "auth", f"the server refused the secure channel or the "
-                           f"gateway's certificate ({name}){mine}")
+                           f"gateway's certificate ({name}){mine}",
+                           reason="gateway certificate rejected")
     if name in _SESSION_LOST:
         return DeviceError(device, "connect", f"session lost while {doing} ({name})")
     if name == "BadTooManyOperations":

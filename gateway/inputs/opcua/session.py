@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import datetime
 
 from asyncua import ua
 from asyncua.client.client import Client
@@ -35,7 +36,7 @@ from ...wire.certs import (
 from .config import OpcUaDeviceConfig, OpcUaSecurity
 from .errors import status_name
 
-__all__ = ["discard", "new_client", "secure"]
+__all__ = ["SERVER_CERT_REASONS", "discard", "new_client", "secure", "server_cert_reason"]
 
 POLICY_CLASSES: dict[str, type[sp.SecurityPolicy]] = {
     "Basic256Sha256": sp.SecurityPolicyBasic256Sha256,
@@ -55,6 +56,17 @@ SERVER_CERT_CHECKS = (
     | CertificateValidatorOptions.REVOKED
     | CertificateValidatorOptions.PEER_SERVER
 )
+SERVER_CERT_REASONS = {
+    "BadCertificateUntrusted": "server certificate untrusted",
+    "BadCertificateUriInvalid": "server certificate URI mismatch",
+    "BadCertificateRevoked": "server certificate revoked",
+    "BadCertificateRevocationUnknown": "server certificate revocation unknown",
+    "BadCertificateHostNameInvalid": "server certificate host name mismatch",
+    "BadCertificateUseNotAllowed": "server certificate use not allowed",
+    "BadCertificateInvalid": "server certificate invalid",
+}
+"""``stiction_device_down_reason`` for a server certificate the gateway's trust store
+refuses, by status (an expired one: :func:`server_cert_reason`)."""
 SESSION_TIMEOUT_MS = 60_000  # a gateway that dies without closing frees its session soon
 
 
@@ -83,7 +95,8 @@ async def secure(client: Client, cfg: OpcUaDeviceConfig, sec: OpcUaSecurity) -> 
         trust = TrustStore([sec.trust_store], [])
         await trust.load()
     except (OSError, ValueError, TypeError) as exc:
-        raise DeviceError(name, "auth", f"cannot load the security files: {exc}") from None
+        raise DeviceError(name, "auth", f"cannot load the security files: {exc}",
+                          reason="security files unreadable") from None
     client.application_uri = application_uri_of(cert) or client.application_uri
     policy = POLICY_CLASSES[sec.policy]
     mode = MODES[sec.mode]
@@ -92,17 +105,21 @@ async def secure(client: Client, cfg: OpcUaDeviceConfig, sec: OpcUaSecurity) -> 
         server_cert = certificate_from_bytes(endpoint.ServerCertificate or b"")
     except ValueError:
         raise DeviceError(name, "auth", f"the server's {sec.policy}/{sec.mode} endpoint "
-                          "carries no valid certificate") from None
+                          "carries no valid certificate",
+                          reason="server certificate invalid") from None
     if pinned is not None and pinned != server_cert:
         raise DeviceError(name, "auth", f"the server presents certificate "
                           f"{describe_certificate(server_cert)}, not the one pinned in "
-                          f"server_certificate ({describe_certificate(pinned)})")
+                          f"server_certificate ({describe_certificate(pinned)})",
+                          reason="server certificate not the pinned one")
     validator = CertificateValidator(SERVER_CERT_CHECKS, trust)
     try:
         await validator.validate(server_cert, endpoint.Server)
     except ServiceError as exc:
-        raise DeviceError(name, "auth", _cert_refusal(
-            status_name(exc.code), server_cert, endpoint.Server, sec)) from None
+        status = status_name(exc.code)
+        raise DeviceError(name, "auth", _cert_refusal(status, server_cert, endpoint.Server,
+                                                      sec),
+                          reason=server_cert_reason(status, server_cert)) from None
     key_pem = key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
                                 serialization.NoEncryption())
     await client.set_security(
@@ -132,7 +149,20 @@ async def _find_endpoint(cfg: OpcUaDeviceConfig, policy_uri: str,
     offered = sorted({f"{ep.SecurityPolicyUri.rsplit('#', 1)[-1]}/{ep.SecurityMode.name}"
                       for ep in endpoints})
     raise DeviceError(cfg.name, "auth", f"the server offers no {sec.policy}/{sec.mode} "
-                      f"endpoint (it offers: {', '.join(offered) or 'none'})")
+                      f"endpoint (it offers: {', '.join(offered) or 'none'})",
+                      reason="no matching endpoint")
+
+
+def server_cert_reason(status: str, cert: x509.Certificate,
+                       now: datetime.datetime | None = None) -> str:
+    """The few words of ``stiction_device_down_reason`` for a server certificate the
+    gateway refused with ``status`` (our trust store's verdict)."""
+    if status == "BadCertificateTimeInvalid":
+        now = now or datetime.datetime.now(datetime.UTC)
+        if now < cert.not_valid_before_utc:
+            return "server certificate not yet valid"
+        return "server certificate expired"
+    return SERVER_CERT_REASONS.get(status, "server certificate refused")
 
 
 def _cert_refusal(status: str, cert: x509.Certificate, server: ua.ApplicationDescription,
@@ -142,8 +172,14 @@ def _cert_refusal(status: str, cert: x509.Certificate, server: ua.ApplicationDes
         return (f"{what} is not trusted ({status}): it is not in the trust store "
                 f"{sec.trust_store}; if this is the right server, copy its certificate there")
     if status == "BadCertificateTimeInvalid":
-        return (f"{what} is not valid now ({status}): valid from "
-                f"{cert.not_valid_before_utc:%Y-%m-%d} to {cert.not_valid_after_utc:%Y-%m-%d}")
+        now = datetime.datetime.now(datetime.UTC)
+        state = ("expired" if now > cert.not_valid_after_utc else "not yet valid"
+                 if now < cert.not_valid_before_utc else "not valid now")
+        return (f"{what} is {state} ({status}): valid from "
+                f"{cert.not_valid_before_utc:%Y-%m-%d %H:%M} to "
+                f"{cert.not_valid_after_utc:%Y-%m-%d %H:%M} UTC; the server needs a new "
+                f"certificate (and the trust store {sec.trust_store} its copy), or this "
+                f"machine's clock is wrong")
     if status == "BadCertificateUriInvalid":
         return (f"{what} does not name the server's application URI "
                 f"{server.ApplicationUri} ({status})")

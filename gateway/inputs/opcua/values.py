@@ -11,6 +11,12 @@ does not exist)
 Good but not a finite    NaN, ``Quality.BAD`` (a string, an array, a boolean, NaN...)
 number
 =======================  ===========================================================
+
+A read in which the server refuses *every* node (each a Bad status: ``BadNodeIdUnknown``
+for node ids it does not have, ``BadUserAccessDenied``...) is not a read of bad values: the
+device serves nothing, as a Modbus device refusing every request. :func:`refused` makes it
+one :class:`~gateway.errors.DeviceError` of kind ``exception``, named by the status; the
+poller calls the device down with that reason and its loops ``device_down``.
 """
 
 from __future__ import annotations
@@ -24,9 +30,10 @@ from asyncua.ua.status_codes import StatusCodes
 from numpy.typing import NDArray
 
 from ...core.points import PointSpec, Quality
+from ...errors import DeviceError
 from .errors import status_name
 
-__all__ = ["StatusLog", "convert"]
+__all__ = ["StatusLog", "convert", "refused"]
 
 _log = logging.getLogger("gateway.inputs.opcua")
 
@@ -55,6 +62,36 @@ def convert(results: Sequence[ua.DataValue], read_index: Sequence[int], n: int
                 continue
         status[i] = StatusCodes.BadTypeMismatch  # for the log: not a usable number
     return raw, quality, status
+
+
+_HINTS = {
+    "BadNodeIdUnknown": "the server has none of these node ids: check them against its "
+                        "address space (stiction-gateway browse {endpoint})",
+    "BadNodeIdInvalid": "these node ids are not valid on this server: check them (stiction-"
+                        "gateway browse {endpoint})",
+    "BadUserAccessDenied": "the server does not let the gateway's user read them: check the "
+                           "user's rights on the server",
+    "BadNotReadable": "the server does not let the gateway's user read them: check the "
+                      "user's rights on the server",
+}
+
+
+def refused(status: NDArray[np.uint32], points: Sequence[PointSpec],
+            node_ids: Sequence[ua.NodeId], *, device: str, endpoint: str
+            ) -> DeviceError | None:
+    """The DeviceError of a read whose every point the server refused (a Bad status each,
+    other than a value that is not a number), else None."""
+    if not len(status) or not (status & 0x80000000).all() \
+            or (status == StatusCodes.BadTypeMismatch).any():
+        return None
+    names = sorted({status_name(int(c)) for c in status})
+    p = points[0]
+    hint = _HINTS.get(names[0], "") if len(names) == 1 else ""
+    text = (f"the server refused every one of its {len(status)} nodes ({', '.join(names)}; "
+            f"the first: loop {p.loop} {p.role}, {node_ids[0].to_string()}): "
+            f"{(hint or 'the server has no value for any of them').format(endpoint=endpoint)}")
+    reason = f"nodes refused ({names[0]})" if len(names) == 1 else "nodes refused"
+    return DeviceError(device, "exception", text, reason=reason)
 
 
 class StatusLog:

@@ -1,6 +1,10 @@
 """The result map for SCADA engineers (``stiction-gateway result-map``): every loop's unit
 id and first register, and each register's meaning, type and scaling, made from
-:data:`gateway.wire.results.LAYOUT` (so it cannot drift from what the server serves).
+:data:`gateway.wire.results.LAYOUT` (so it cannot drift from what the server serves). Each
+register is named three ways: 0-based as on the wire (``register``), and as the 1-based
+references of the holding and the input registers (``holding`` 400001 + register, read
+with function code 3; ``input`` 300001 + register, function code 4), which hold the same
+values.
 
 :func:`layout_markdown` is the per-block table of docs/modbus-map.md, from the same
 layout (a test holds the two equal).
@@ -16,10 +20,15 @@ from collections.abc import Iterator
 from ...config.model import Config
 from ...wire.results import LAYOUT, RESULT_BLOCK_SIZE
 
-__all__ = ["COLUMNS", "MapRow", "layout_markdown", "map_csv", "map_rows", "map_table"]
+__all__ = ["COLUMNS", "READ_WITH", "MapRow", "layout_markdown", "map_csv", "map_rows",
+           "map_table"]
 
-COLUMNS = ("loop", "unit_id", "register", "offset", "field", "type", "word_order", "scale",
-           "unit", "meaning")
+COLUMNS = ("loop", "unit_id", "register", "holding", "input", "offset", "field", "type",
+           "word_order", "scale", "unit", "meaning")
+READ_WITH = ("read as holding registers (function code 3, references 4xxxxx) or as input "
+             "registers (function code 4, references 3xxxxx): both hold the same values; "
+             "register: 0-based, as on the wire")
+"""The first line of the table (:func:`map_table`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +46,16 @@ class MapRow:
     scale: float
     unit: str
     meaning: str
+
+    @property
+    def holding(self) -> int:
+        """The 1-based (Modicon, six-digit) reference of the holding register."""
+        return 400001 + self.register
+
+    @property
+    def input(self) -> int:
+        """The 1-based (Modicon, six-digit) reference of the input register."""
+        return 300001 + self.register
 
     def cells(self) -> list[str]:
         return [str(getattr(self, c)) if c != "scale" else f"{self.scale:g}" for c in COLUMNS]
@@ -65,11 +84,13 @@ def map_csv(rows: Iterator[MapRow]) -> str:
 
 
 def map_table(rows: Iterator[MapRow]) -> str:
-    """The rows as an aligned text table (the meaning last, not padded)."""
+    """The rows as an aligned text table (the meaning last, not padded), under a line that
+    says which registers to read (:data:`READ_WITH`)."""
     cells = [list(COLUMNS), *(r.cells() for r in rows)]
     widths = [max(len(c[i]) for c in cells) for i in range(len(COLUMNS) - 1)]
-    return "".join("  ".join([*(c.ljust(w) for c, w in zip(row, widths, strict=False)),
-                              row[-1]]).rstrip() + "\n" for row in cells)
+    lines = ["  ".join([*(c.ljust(w) for c, w in zip(row, widths, strict=False)),
+                        row[-1]]).rstrip() for row in cells]
+    return "\n".join([READ_WITH, *lines]) + "\n"
 
 
 def layout_markdown() -> str:

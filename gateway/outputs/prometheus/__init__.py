@@ -1,7 +1,7 @@
 """Prometheus output (the ``metrics`` config section): the per-loop series read from the
-result store at scrape time (:mod:`.collector`) and the gateway's own series
-(:mod:`.devices`), in one explicitly passed registry, served over HTTP by :mod:`.http`
-(asyncio, bounded connections, one rendering thread).
+result store at scrape time (:mod:`.collector`), the engineer's findings (:mod:`.findings`)
+and the gateway's own series (:mod:`.devices`), in one explicitly passed registry, served
+over HTTP by :mod:`.http` (asyncio, bounded connections, one rendering thread).
 """
 
 from __future__ import annotations
@@ -11,10 +11,12 @@ from typing import Any
 from prometheus_client import CollectorRegistry, disable_created_metrics
 
 from ...config.model import Config
+from ...core.findings import FindingsBook
 from ...wire.listener import ListenerStats
 from ..base import Binding, Swap
 from .collector import StoreCollector
 from .devices import GatewayMetrics
+from .findings import FindingsCollector
 from .http import MetricsServer
 from .plant import PlantCollector
 
@@ -25,8 +27,9 @@ disable_created_metrics()  # type: ignore[no-untyped-call]  # no _created series
 
 
 def create_sink(binding: Binding, *, registry: CollectorRegistry, metrics: GatewayMetrics,
-                serve_http: bool = True, **_: Any) -> PrometheusSink:
-    return PrometheusSink(registry, metrics, serve_http=serve_http)
+                serve_http: bool = True, findings: FindingsBook | None = None,
+                **_: Any) -> PrometheusSink:
+    return PrometheusSink(registry, metrics, serve_http=serve_http, findings=findings)
 
 
 class PrometheusSink:
@@ -35,8 +38,9 @@ class PrometheusSink:
     new address first (:meth:`prepare`)."""
 
     def __init__(self, registry: CollectorRegistry, metrics: GatewayMetrics, *,
-                 serve_http: bool = True) -> None:
+                 serve_http: bool = True, findings: FindingsBook | None = None) -> None:
         self.registry = registry
+        self.findings = findings
         self.metrics = metrics
         self.serve_http = serve_http
         self.collector: StoreCollector | None = None
@@ -76,10 +80,12 @@ class PrometheusSink:
     async def bind(self, binding: Binding) -> None:
         cfg = binding.config
         if self.collector is None:
-            self.collector = StoreCollector(binding.store)
+            self.collector = StoreCollector(binding.store, self.findings)
             self.registry.register(self.collector)
             self.registry.register(PlantCollector(
                 lambda: self.collector.store if self.collector is not None else None))
+            if self.findings is not None:
+                self.registry.register(FindingsCollector(self.findings))
         else:
             self.collector.store = binding.store
         self.metrics.set_identity(cfg.gateway.site, cfg.gateway.area)

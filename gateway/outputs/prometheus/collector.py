@@ -26,6 +26,7 @@ from prometheus_client.openmetrics import exposition as om
 from prometheus_client.registry import Collector
 from prometheus_client.utils import floatToGoString
 
+from ...core.findings import FindingsBook, FindingsView, day_start
 from ...core.store import ResultStore, StoreSnapshot
 from ...wire.results import VERDICT_CODES
 
@@ -53,8 +54,15 @@ _FAMILIES = (  # name, help; in the order they are yielded
     ("plant_role", "1 for the loop's plant-wide role (source: its valve drives the group's "
      "cycle; follower: it carries a cycle from elsewhere), 0 for the other; both 0 in no "
      "group."),
+    ("finding", "1 for the loop's latest finding in the findings file (stiction, deadband, "
+     "ok, other; none: no finding)."),
+    ("finding_timestamp_seconds", "Unix time of the local midnight that began the day of "
+     "the loop's latest finding."),
 )
-_EXTRA_LABEL = {"verdict": "verdict", "plant_role": "role"}  # the label beside loop
+# the label names of each family, in the order the client library writes them (sorted);
+# its rows hold the values in this order
+_KEYS: dict[str, tuple[str, ...]] = {"verdict": ("loop", "verdict"), "plant_role": ("loop", "role"),
+                                     "finding": ("finding", "loop")}
 ROLES = ("source", "follower")
 _FAST_ESCAPINGS = (om.UNDERSCORES, om.ALLOWUTF8)  # legacy names stay as they are
 
@@ -62,19 +70,24 @@ _FAST_ESCAPINGS = (om.UNDERSCORES, om.ALLOWUTF8)  # legacy names stay as they ar
 class StoreCollector(Collector):
     """Yields the per-loop series from the result store at each scrape."""
 
-    def __init__(self, store: ResultStore) -> None:
+    def __init__(self, store: ResultStore, findings: FindingsBook | None = None) -> None:
         self.store = store
+        self.findings = findings  # the engineer's findings (the finding families), if any
         self._rendering = threading.local()  # set while page() renders the others
 
     def collect(self) -> Iterator[Metric]:
         if getattr(self._rendering, "on", False):
             return
-        for (name, doc), rows in zip(_FAMILIES, rows_of(self.store.snapshot()), strict=True):
-            labels = ["loop", _EXTRA_LABEL[name]] if name in _EXTRA_LABEL else ["loop"]
+        rows_all = rows_of(self.store.snapshot(), self._view())
+        for (name, doc), rows in zip(_FAMILIES, rows_all, strict=True):
+            labels = list(_KEYS.get(name, ("loop",)))
             family = GaugeMetricFamily(f"{PREFIX}_loop_{name}", doc, labels=labels)
             for values, value in rows:
                 family.add_metric(list(values), value)
             yield family
+
+    def _view(self) -> FindingsView | None:
+        return self.findings.view if self.findings is not None else None
 
     def page(self, registry: CollectorRegistry, encoder: Callable[[Any], bytes],
              openmetrics: bool) -> bytes:
@@ -88,9 +101,10 @@ class StoreCollector(Collector):
         finally:
             self._rendering.on = False
         lines: list[str] = []
-        for (name, doc), rows in zip(_FAMILIES, rows_of(self.store.snapshot()), strict=True):
+        rows_all = rows_of(self.store.snapshot(), self._view())
+        for (name, doc), rows in zip(_FAMILIES, rows_all, strict=True):
             lines.append(_head(f"{PREFIX}_loop_{name}", doc, encoder, openmetrics))
-            key = ("loop", _EXTRA_LABEL[name]) if name in _EXTRA_LABEL else ("loop",)
+            key = _KEYS.get(name, ("loop",))
             prefix = f"{PREFIX}_loop_{name}{{"
             lines.extend([f"{prefix}{_labels(key, values)}}} {_number(value)}\n"
                           for values, value in rows])
@@ -100,12 +114,19 @@ class StoreCollector(Collector):
         return others + text
 
 
-def rows_of(st: StoreSnapshot) -> list[Rows]:
-    """Per family of :data:`_FAMILIES`, its samples: (label values, value)."""
+def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Rows]:
+    """Per family of :data:`_FAMILIES`, its samples: (label values, value); the finding
+    families only with ``findings`` (every loop: its latest finding, or ``none``)."""
     out: list[Rows] = [[] for _ in _FAMILIES]
-    si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role = out
+    si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role, found, when = out
     roles = st.plant.roles
+    latest = findings.latest if findings is not None else None
     for i, name in enumerate(st.loops):
+        if latest is not None:
+            f = latest.get(name)
+            found.append((("none" if f is None else f.finding, name), 1.0))
+            if f is not None:
+                when.append(((name,), day_start(f.date)))
         current = st.verdict_name(i)
         verdict.extend(((name, v), 1.0 if v == current else 0.0) for v in VERDICTS)
         number, its_role = roles.get(name, (0, ""))

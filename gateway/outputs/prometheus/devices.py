@@ -1,8 +1,9 @@
 """The gateway's own metrics: device up (and why it is down), refused requests, poll
 duration/requests/errors, missed ticks, poll lateness and whether a device keeps its
-schedule, analysis duration, config reload failures, state-file writes, the servers'
-connections and errors, build info. Ordinary client objects in the explicitly passed
-registry (a fresh one per gateway, so each test gets its own)."""
+schedule, analysis duration, verdict changes published and held back, config reload
+failures, state-file writes, the servers' connections and errors, build info. Ordinary
+client objects in the explicitly passed registry (a fresh one per gateway, so each test gets
+its own)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.registry import Collector
 
 from ..._version import __version__
+from ...core.hysteresis import OUTCOMES
 from ...errors import DeviceError
 from ...wire.listener import CLOSE_REASONS, ERROR_STAGES, ListenerStats
 from .collector import PREFIX
@@ -68,6 +70,13 @@ class GatewayMetrics:
             f"{PREFIX}_analysis_duration_seconds", "Worker time to analyse one loop window.",
             buckets=(0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5),
             registry=registry)
+        self.verdict_changes = Counter(
+            f"{PREFIX}_verdict_changes", "Loop verdicts through the verdict hysteresis "
+            "(verdict_hysteresis): changes published, and rounds in which a change was held "
+            "back (a new verdict not yet held for its rounds, or a judgement held while its "
+            "window warms up again).", ["outcome"], registry=registry)
+        for outcome in OUTCOMES:
+            self.verdict_changes.labels(outcome=outcome)
         self.reload_failures = Counter(
             f"{PREFIX}_config_reload_failures", "Config reloads refused (the running config "
             "kept), by stage.", ["stage"], registry=registry)
@@ -84,12 +93,22 @@ class GatewayMetrics:
             "started empty), by reason.", ["reason"], registry=registry)
         for reason in STATE_SET_ASIDE:
             self.state_set_aside.labels(reason=reason)
+        self.state_clock_back = Gauge(
+            f"{PREFIX}_state_clock_back_seconds", "How far the wall clock was behind the "
+            "state file's last write when the gateway started (0: not behind). Above 0 the "
+            "clock stepped back across the restart (an NTP correction after a reboot?): the "
+            "downtime was unknown, restored as a gap, and sequence numbers moved on as "
+            "after a kill.", registry=registry)
         self.servers = ServerCollector()
         registry.register(self.servers)
         self.build = Info(f"{PREFIX}_build", "Version of the gateway, and its site and area "
                           "(gateway.site, gateway.area) where the config names them.",
                           registry=registry)
         self.set_identity(None, None)
+
+    def count_verdict(self, outcome: str) -> None:
+        """One outcome of the verdict hysteresis (:data:`~gateway.core.hysteresis.OUTCOMES`)."""
+        self.verdict_changes.labels(outcome=outcome).inc()
 
     def set_identity(self, site: str | None, area: str | None) -> None:
         """``stiction_build_info``'s labels: the version, and ``site``/``area`` if set."""

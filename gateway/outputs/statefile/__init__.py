@@ -5,8 +5,10 @@ The sink restores the file when it starts (before any poll), writes it every
 ``gateway.persist_interval_s`` (a failing write is logged once, and once when it works
 again: a full disk must not stop the gateway) and once more when it stops. With the
 gateway's metrics it counts failed writes (``stiction_state_write_failures_total``), keeps
-the time of the last good one (``stiction_state_last_write_timestamp_seconds``) and counts
-a file set aside at start (``stiction_state_file_set_aside_total{reason}``).
+the time of the last good one (``stiction_state_last_write_timestamp_seconds``), counts
+a file set aside at start (``stiction_state_file_set_aside_total{reason}``) and says how far
+the wall clock was behind the file's last write at start
+(``stiction_state_clock_back_seconds``: it stepped back across the restart).
 """
 
 from __future__ import annotations
@@ -60,8 +62,10 @@ class StateFile:
         b = self.binding
         self.report = restore_state(self.path, b.config, b.groups, b.store, wall=self.wall(),
                                     time_scale=b.clock.time_scale)
-        if self.report.kind is not None and self.metrics is not None:
-            self.metrics.state_set_aside.labels(reason=self.report.kind).inc()
+        if self.metrics is not None:
+            if self.report.kind is not None:
+                self.metrics.state_set_aside.labels(reason=self.report.kind).inc()
+            self.metrics.state_clock_back.set(self.report.clock_back_s)
         self._task = asyncio.create_task(self._persist(), name="persist")
 
     async def save(self, *, final: bool = False) -> int:

@@ -5,6 +5,14 @@ window length, OP/PV point definitions) is unchanged, and its latest assessment 
 whole loop config is also unchanged; other loops start fresh. The time the gateway was down
 becomes a gap (quality MISSING) in the restored windows. A file that cannot be read or is not
 ours is set aside with a warning; the gateway starts fresh and never crashes on it.
+
+The downtime is the wall time from the file's last write to now. A wall clock that is
+*behind* the last write stepped back across the restart (an NTP correction after a reboot,
+a hand-set clock): the downtime is then unknown, not zero. It becomes a gap of
+:data:`UNKNOWN_DOWNTIME_ROWS` samples, longer than any gap the analysis bridges, and after a
+kill the sequence numbers move on by the most analysis rounds the kill can have lost (a
+persist interval and the writes around it: :func:`seq_bump`); one WARNING line says so, and
+the report keeps how far back the clock was (``stiction_state_clock_back_seconds``).
 """
 
 from __future__ import annotations
@@ -25,12 +33,18 @@ from stiction import Assessment
 from ...config.model import Config
 from ...core.points import MAX_MAGNITUDE, Quality
 from ...core.store import LoopResult, ResultStore
+from ...core.ticks import STALE_POLLS
 from ...core.windows import LoopGroup, load_columns, loop_signature, result_signature
 from .format import StateError, read_state, set_aside, state_bounds
 
-__all__ = ["RestoreReport", "restore_state", "seq_bump"]
+__all__ = ["UNKNOWN_DOWNTIME_ROWS", "RestoreReport", "restore_state", "seq_bump"]
 
 log = logging.getLogger("gateway.state")
+
+UNKNOWN_DOWNTIME_ROWS = STALE_POLLS + 1
+"""Gap rows for a downtime that is unknown (the wall clock stepped back across the
+restart): more than the stale limit, so the analysis (which fills gaps of up to that many
+samples) never joins the samples before it to those after."""
 
 
 @dataclasses.dataclass
@@ -42,6 +56,7 @@ class RestoreReport:
     set_aside: Path | None = None
     problem: str | None = None
     kind: str | None = None  # why it was set aside: corrupt, foreign
+    clock_back_s: float = 0.0  # how far the wall clock was behind the file's last write
 
 
 def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[LoopGroup],
@@ -117,8 +132,11 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
         for c, entry in enumerate(b["loops"]):
             if isinstance(entry, dict) and isinstance(entry.get("name"), str):
                 saved[entry["name"]] = (k, c, entry)
-    down_proc = max(0.0, wall - float(header["saved_wall"])) * time_scale
-    bump = seq_bump(header, wall, config.gateway.analysis_interval_s / time_scale)
+    down_wall = wall - float(header["saved_wall"])
+    report.clock_back_s = max(0.0, -down_wall)
+    down_proc = None if down_wall < 0 else down_wall * time_scale  # None: unknown
+    bump = seq_bump(header, wall, config.gateway.analysis_interval_s / time_scale,
+                    config.gateway.persist_interval_s, written=p.stat().st_mtime)
     for name, (_k, _c, entry) in saved.items():
         i = store.index.get(name)
         seq = entry.get("seq", (entry.get("result") or {}).get("seq", 0))
@@ -162,28 +180,44 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
         if last_t is not None:
             # samples missed while the gateway was down: since the last sample saved and
             # from the save to now; the first new poll fills the slot after these
-            missed = (float(header["saved_proc"]) - last_t + down_proc) / ref.ts - 1
-            rows = int(min(max(0.0, np.floor(missed + 1e-6)), ref.bank.size))  # 1e-6: float noise
+            missed = (float(header["saved_proc"]) - last_t + (down_proc or 0.0)) / ref.ts - 1
+            rows = int(max(0.0, np.floor(missed + 1e-6)))  # 1e-6: float noise
+            if down_proc is None:
+                rows = max(rows, UNKNOWN_DOWNTIME_ROWS)
+            rows = min(rows, ref.bank.size)
             nan = np.full(len(ref.configs), np.nan, dtype=np.float32)
             miss = np.full(len(ref.configs), Quality.MISSING, dtype=np.uint8)
             for r in range(rows):
                 ref.bank.append(last_t + (r + 1) * ref.ts, nan, nan, miss)
             report.gap_rows = max(report.gap_rows, rows)
+    if down_proc is None:
+        log.warning("state file %s: the wall clock is %.0f s behind the file's last write "
+                    "(it stepped back across the restart: an NTP correction, a clock set by "
+                    "hand?); the downtime is unknown: a gap of at least %d samples in every "
+                    "window%s", p, report.clock_back_s, UNKNOWN_DOWNTIME_ROWS,
+                    "" if not bump else f", sequence numbers moved on by {bump}")
     log.info("state file %s: restored %d windows and %d assessments; %d loops start fresh; "
              "downtime gap %d samples", p, report.restored_windows, report.restored_results,
              len(report.fresh), report.gap_rows)
 
 
-def seq_bump(header: dict[str, Any], wall: float, interval_wall_s: float) -> int:
+def seq_bump(header: dict[str, Any], wall: float, interval_wall_s: float,
+             persist_wall_s: float, *, written: float | None = None) -> int:
     """How much to add to the saved sequence numbers so that they never go backwards: 0
     after a clean exit (the file was written last); after a kill, one more than the analysis
     rounds that could have run between the save and now (``wall``), as the file lags the
-    registers SCADA read by up to one ``persist_interval_s``."""
+    registers SCADA read by up to one ``persist_interval_s``. With the wall clock behind the
+    save (it stepped back) the time since is unknown: the rounds of the longest a kill can
+    have lost, ``persist_wall_s`` and twice the write the file took (``written``, its
+    modification time, less its save time: both by the clock that wrote it), and two more."""
     if header.get("clean") is True:
         return 0
     try:
-        interval = float(header.get("analysis_interval_wall_s") or interval_wall_s)
-        down = max(0.0, wall - float(header["saved_wall"]))
-        return int(down // max(interval, 1e-3)) + 1
+        interval = max(float(header.get("analysis_interval_wall_s") or interval_wall_s), 1e-3)
+        saved = float(header["saved_wall"])
+        if wall < saved:
+            write_s = min(max(0.0, (written or saved) - saved), persist_wall_s + 60.0)
+            return int((persist_wall_s + 2 * write_s) // interval) + 2
+        return int((wall - saved) // interval) + 1
     except (TypeError, ValueError):
         return 1

@@ -189,12 +189,13 @@ def test_fewer_than_two_samples(tmp_path: Path, capsys: pytest.CaptureFixture[st
 def test_time_going_backwards(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     p = _write(tmp_path, "t,op,pv\n" + "".join(f"{t},1,2\n" for t in (0, 2, 1)))
     err = _error(capsys, ["analyze", str(p)])
-    assert "time goes backwards at line 4 (2 -> 1 s in column 't'): sort the rows" in err
+    assert "time goes backwards in column 't': '2' (line 3) -> '1' (line 4): sort the rows" \
+        in err
 
 
 def test_one_time_stamp_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     p = _write(tmp_path, "t,op,pv\n" + "".join(f"{t},1,2\n" for t in (5, 5, 5)))
-    assert "holds one time only; give --ts S" in _error(capsys, ["analyze", str(p)])
+    assert "holds one time only ('5'); give --ts S" in _error(capsys, ["analyze", str(p)])
 
 
 def test_missing_time(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

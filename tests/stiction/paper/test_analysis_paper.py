@@ -134,7 +134,23 @@ def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float, see
         assert a.fs is None
 
 
-@pytest.mark.parametrize(("noise", "seed"), [(0.0, 0), (0.05, 1), (0.05, 2)])
+SLOW_RUNS = ((0.0, 0), (0.05, 1), (0.05, 2))
+SLOW_TAUS = (330.0, 360.0, 390.0)
+UNDETERMINED_TODAY = {(0.0, 0, 330.0): 0.816, (0.0, 0, 360.0): 0.817, (0.0, 0, 390.0): 0.799,
+                      (0.05, 2, 360.0): 0.816}
+"""The runs the learned decision leaves ``undetermined`` (confidence at 3dfa8c7, under the
+0.87 of a call): the paper detects each, so the requirement stands and these fail it;
+``xfail(strict=True)`` fails the day they are called, so that the mark goes with them."""
+
+
+@functools.cache
+def _slow_rows(noise: float, seed: int) -> dict[float, ReproRow]:
+    rows = reproduce(noise=noise, seed=seed,
+                     rows=[p for p in PAPER_ROWS if p.case in ("tau=330", "tau=360", "tau=390")])
+    return {_tau(r): r for r in rows}
+
+
+@pytest.mark.parametrize(("noise", "seed"), SLOW_RUNS)
 def test_table6_slow_loops_330_to_390_are_never_cleared_and_sized_when_called(
         noise: float, seed: int) -> None:
     """Table 6, tau 330-390 s (paper SI 0.84-0.64, detected): the slowest loops the paper
@@ -142,10 +158,9 @@ def test_table6_slow_loops_330_to_390_are_never_cleared_and_sized_when_called(
     leaves the others `undetermined` at 0.80-0.82, just under its threshold (the weighted
     vote called all nine runs, at the price of its false calls on the corpus,
     docs/accuracy.md); it never clears the valve, and what it calls it sizes within 5 %."""
-    rows = reproduce(noise=noise, seed=seed,
-                     rows=[p for p in PAPER_ROWS if p.case in ("tau=330", "tau=360", "tau=390")])
-    assert len(rows) == 3
-    for r in rows:
+    rows = _slow_rows(noise, seed)
+    assert sorted(rows) == list(SLOW_TAUS)
+    for r in rows.values():
         a = r.assessment
         assert a.verdict in (Verdict.STICTION, Verdict.UNDETERMINED), (r.paper.case, a.reason)
         assert a.confidence is not None and a.confidence >= 0.75, (r.paper.case, a.reason)
@@ -155,3 +170,19 @@ def test_table6_slow_loops_330_to_390_are_never_cleared_and_sized_when_called(
         assert a.fs is not None
         assert abs(a.fd / 0.18 - 1) < 0.05, (r.paper.case, a.fd)
         assert abs(a.fs / 0.20 - 1) < 0.05, (r.paper.case, a.fs)
+
+
+@pytest.mark.parametrize(("noise", "seed", "tau"), [
+    pytest.param(noise, seed, tau, marks=pytest.mark.xfail(
+        strict=True, reason=f"undetermined at {UNDETERMINED_TODAY[(noise, seed, tau)]}"))
+    if (noise, seed, tau) in UNDETERMINED_TODAY else (noise, seed, tau)
+    for noise, seed in SLOW_RUNS for tau in SLOW_TAUS])
+def test_table6_slow_loops_330_to_390_are_called(noise: float, seed: int, tau: float) -> None:
+    """Each run of Table 6's slow loops is called `stiction` and sized within 5 %, as the
+    paper detects each (issue 31: the test above would pass with every run
+    `undetermined`). Today 5 of the 9 runs are; the 4 in UNDETERMINED_TODAY are not."""
+    r = _slow_rows(noise, seed)[tau]
+    a = r.assessment
+    assert a.verdict == Verdict.STICTION, (r.paper.case, a.confidence, a.reason)
+    assert a.fd is not None and abs(a.fd / 0.18 - 1) < 0.05, (r.paper.case, a.fd)
+    assert a.fs is not None and abs(a.fs / 0.20 - 1) < 0.05, (r.paper.case, a.fs)

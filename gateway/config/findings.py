@@ -1,0 +1,220 @@
+"""The engineer's findings (``findings: findings.csv`` in the config): what the crew found at
+a valve, kept by the plant under version control beside the config (docs/configuration.md,
+"Findings").
+
+A CSV file like a tag list: the first line that is not empty or a ``#`` comment is the
+header, naming the columns of :data:`COLUMNS` in any order and any case (``,``, ``;`` or
+tab separated; a spreadsheet's UTF-8 byte-order mark is ignored), then one finding per row::
+
+    loop,date,finding,fd,fs,by,note
+    FIC101,2024-03-05,stiction,2.5,3.1,J. Doe,packing tightened
+    TIC301,2024-03-07,ok,,,J. Doe,cycle from the steam header
+
+Every row is checked; a bad row is named (file, line, what is wrong) and skipped, never
+fatal: the good rows are used. :func:`read_findings` returns them with the problems; a file
+that cannot be read at all (missing, unreadable, no header) says so in ``problems`` with
+``readable`` False, and the gateway keeps the findings it had (:mod:`gateway.core.findings`).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import datetime as dt
+import math
+import re
+from collections.abc import Collection
+from pathlib import Path
+from typing import Any
+
+__all__ = ["COLUMNS", "FINDINGS", "MAX_FINDINGS_BYTES", "REQUIRED", "Finding", "FindingsFile",
+           "findings_path", "parse_findings", "read_findings", "verdicts_path"]
+
+FINDINGS = ("stiction", "deadband", "ok", "other")
+"""What the crew found: ``stiction`` (the valve sticks), ``deadband`` (lost motion, no
+stick-slip: worn linkage, loose positioner), ``ok`` (the valve is fine: the cause is
+elsewhere), ``other`` (a valve problem of another kind: sized wrong, cavitating, ...)."""
+COLUMNS: dict[str, str] = {
+    "loop": "the loop's name, as in the config",
+    "date": "when the crew found it: YYYY-MM-DD (a date-time's date is taken)",
+    "finding": "one of " + ", ".join(FINDINGS),
+    "fd": "dynamic friction (or dead band) measured, % of span (optional)",
+    "fs": "static friction measured, % of span (optional)",
+    "by": "who found it (optional)",
+    "note": "what was found or done (optional)",
+}
+REQUIRED = ("loop", "date", "finding")
+MAX_FINDINGS_BYTES = 8 * 1024 * 1024
+"""A findings file larger than this is not read (the gateway keeps what it had)."""
+MAX_TEXT = 500  # characters of ``by`` and ``note`` kept
+_DAY_FIRST = re.compile(r"(\d{1,2})\.(\d{1,2})\.(\d{4})")
+
+
+@dataclasses.dataclass(frozen=True)
+class Finding:
+    """One row: ``fd`` and ``fs`` in % of span (None: not measured); ``line`` in the file."""
+
+    loop: str
+    date: dt.date
+    finding: str
+    fd: float | None = None
+    fs: float | None = None
+    by: str = ""
+    note: str = ""
+    line: int = 0
+
+
+@dataclasses.dataclass(frozen=True)
+class FindingsFile:
+    """A read findings file: its good rows, one line per problem, and whether the file
+    could be read at all (False: keep the findings you had)."""
+
+    source: str
+    findings: tuple[Finding, ...] = ()
+    problems: tuple[str, ...] = ()
+    readable: bool = True
+
+
+def findings_path(config_source: str, value: str) -> Path:
+    """The file ``findings: value`` names, relative to the config file's folder."""
+    path = Path(value).expanduser()
+    if path.is_absolute():
+        return path
+    config = Path(config_source)
+    return (config.parent if config.is_file() else Path()) / path
+
+
+def verdicts_path(state_file: str) -> Path:
+    """The verdict history's file, beside the state file: ``gateway.state`` ->
+    ``gateway.verdicts`` (``NAME`` -> ``NAME.verdicts`` without a suffix)."""
+    p = Path(state_file)
+    out = p.with_suffix(".verdicts") if p.suffix else p.with_name(p.name + ".verdicts")
+    return out if out != p else p.with_name(p.name + ".verdicts")
+
+
+def read_findings(path: str | Path, loops: Collection[str], *, today: dt.date,
+                  shown_as: str | None = None) -> FindingsFile:
+    """Read and check a findings file against the config's ``loops``; never raises."""
+    source = shown_as or str(path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_FINDINGS_BYTES + 1)
+    except OSError as exc:
+        return FindingsFile(source, (), (f"{source}: cannot read: {exc.strerror or exc}",),
+                            readable=False)
+    if len(data) > MAX_FINDINGS_BYTES:
+        return FindingsFile(source, (), (f"{source}: larger than {MAX_FINDINGS_BYTES:,} bytes,"
+                                         " the most a findings file may have",), readable=False)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        return FindingsFile(source, (), (f"{source}: line {line}: not UTF-8 (save the file "
+                                         "as UTF-8)",), readable=False)
+    return parse_findings(text, source, loops, today=today)
+
+
+def parse_findings(text: str, source: str, loops: Collection[str], *, today: dt.date
+                   ) -> FindingsFile:
+    lines = [(n, line) for n, line in enumerate(text.splitlines(), start=1)
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        return FindingsFile(source, (), (f"{source}: no header row (columns: "
+                                         f"{', '.join(COLUMNS)})",), readable=False)
+    head_line, head = lines[0]
+    delimiter = max(",;\t", key=head.count)
+    header = [c.strip().lower() for c in next(csv.reader([head], delimiter=delimiter))]
+    where = f"{source}: line {head_line}"
+    problems = [f"{where}: unknown column {c!r} (known: {', '.join(COLUMNS)})"
+                for c in dict.fromkeys(header) if c not in COLUMNS]
+    problems += [f"{where}: column {c!r} appears twice" for c in COLUMNS if header.count(c) > 1]
+    missing = [c for c in REQUIRED if c not in header]
+    if missing or problems:
+        problems += [f"{where}: missing column(s) {', '.join(map(repr, missing))}"] if missing \
+            else []
+        return FindingsFile(source, (), tuple(problems), readable=False)
+    out: list[Finding] = []
+    seen: dict[tuple[Any, ...], int] = {}
+    for n, line in lines[1:]:
+        cells = next(csv.reader([line], delimiter=delimiter))
+        if len(cells) != len(header):
+            problems.append(f"{source}: line {n} has {len(cells)} cells, the header has "
+                            f"{len(header)}: make the row one cell per column (an empty "
+                            "cell for an empty value)")
+            continue
+        row = {c: cell.strip() for c, cell in zip(header, cells, strict=True)}
+        finding, why = _row(row, n, loops, today, delimiter != ",")
+        if finding is None:
+            name = row.get("loop")
+            problems.append(f"{source}: line {n}" + (f": loop {name}" if name else "")
+                            + f": {why}")
+            continue
+        key = (finding.loop, finding.date, finding.finding, finding.fd, finding.fs,
+               finding.by, finding.note)
+        if key in seen:
+            problems.append(f"{source}: line {n}: loop {finding.loop}: repeats line "
+                            f"{seen[key]}")
+            continue
+        seen[key] = n
+        out.append(finding)
+    return FindingsFile(source, tuple(out), tuple(problems))
+
+
+def _row(row: dict[str, str], n: int, loops: Collection[str], today: dt.date,
+         comma: bool) -> tuple[Finding | None, str]:
+    loop = row["loop"]
+    if not loop:
+        return None, "column 'loop': required, but empty"
+    if loop not in loops:
+        return None, f"column 'loop': no loop {loop!r} in the config"
+    date = _date(row["date"])
+    if date is None:
+        return None, (f"column 'date': {row['date']!r} is not a date (write YYYY-MM-DD, e.g. "
+                      f"{today.isoformat()})")
+    if date > today + dt.timedelta(days=1):
+        return None, f"column 'date': {date.isoformat()} is in the future"
+    kind = row["finding"].lower()
+    if kind not in FINDINGS:
+        return None, (f"column 'finding': must be one of {', '.join(FINDINGS)}, "
+                      f"was {row['finding']!r}")
+    sizes: dict[str, float | None] = {}
+    for col in ("fd", "fs"):
+        cell = row.get(col, "")
+        sizes[col] = None
+        if cell:
+            value = _number(cell, comma)
+            if value is None or not 0.0 <= value <= 100.0:
+                return None, (f"column {col!r}: must be a number of % of span (0 to 100), "
+                              f"was {cell!r}")
+            sizes[col] = value
+    fd, fs = sizes["fd"], sizes["fs"]
+    if fd is not None and fs is not None and fd > fs:
+        return None, f"column 'fd': {fd:g} exceeds fs {fs:g} (fd is never above fs)"
+    return Finding(loop, date, kind, fd, fs, _text(row.get("by", "")),
+                   _text(row.get("note", "")), n), ""
+
+
+def _date(cell: str) -> dt.date | None:
+    m = _DAY_FIRST.fullmatch(cell)
+    try:
+        if m:
+            return dt.date(int(m[3]), int(m[2]), int(m[1]))
+        if len(cell) >= 10 and cell[4] == "-":
+            return dt.datetime.fromisoformat(cell).date() if len(cell) > 10 else \
+                dt.date.fromisoformat(cell)
+    except ValueError:
+        return None
+    return None
+
+
+def _number(cell: str, comma: bool) -> float | None:
+    try:
+        value = float(cell.replace(",", ".") if comma else cell)
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None  # NaN, inf: no number here
+
+
+def _text(cell: str) -> str:
+    clean = "".join(ch if ch.isprintable() else " " for ch in cell)
+    return clean[:MAX_TEXT]

@@ -1,0 +1,153 @@
+"""Verdict hysteresis: a published verdict changes when the evidence has changed, not when
+the window slides by one round.
+
+In SCADA each verdict change is an alarm, and alarm management (ISA-18.2, EEMUA 191) treats
+a chattering alarm as a defect: the demo's sticky level loop went ``stiction ->
+undetermined -> stiction -> undetermined -> stiction`` in 90 s while nothing in its valve or
+load changed, its confidence hovering about the decision's threshold (issue 32). So each
+loop's verdict passes :meth:`VerdictFilter.publish` before it is published (per loop, every
+analysis round, before the plant step; ``verdict_hysteresis`` in the config,
+docs/configuration.md):
+
+- **Judgements** (:data:`FILTERED`: ``stiction``, ``no_stiction``, ``undetermined``,
+  ``not_oscillating``, ``valve_not_responding``): a new one replaces the published one when
+  the loop's verdict has differed from it for ``rounds`` analysis rounds in a row (the
+  latest is published), or, into or out of ``stiction`` (the alarm), at once when its
+  confidence of stiction differs from the published one's by at least ``margin``:
+  evidence that moved that far is a change (a valve repaired, or one that began to stick),
+  not a window sliding. Between the other judgements the rounds alone decide: a weakly
+  cycling loop's confidence can jump by half the scale from one round to the next (the
+  demo plant's FIC102: 0.05, 0.63, 0.06), and nothing urgent hangs on those changes.
+  Until then the published judgement stays, its reason saying what this round found and
+  how long it has held. Either way the published numbers are those of the published
+  verdict (a size only beside ``stiction``).
+- **Warming up after a judgement** (the window restarted after an outage, or the gateway
+  after a restart, and holds too little to judge: ``gateway/core/jobs.py``): the judgement
+  is kept, its reason saying it is held, since when and what the loop waits for, until the
+  loop is judged again (issue 31).
+- Everything else is published at once: a loop's first verdict, ``warming_up`` before any
+  judgement, ``bad_data`` (a data fault is said at once, and so is its end: the first
+  judgement after it).
+
+``rounds: 1`` turns the hysteresis off. Counted (:attr:`VerdictFilter.counts`, the metric
+``stiction_verdict_changes_total{outcome}``): changes published (``published``) and rounds in
+which a change was held back, warming up included (``held_back``). The time of a held result
+is its round's, as every result's: the age of the latest assessment stays the analysis's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Iterable
+
+from stiction import Assessment, Verdict
+
+from ..config.model import HysteresisSettings
+
+__all__ = ["FILTERED", "OUTCOMES", "VerdictFilter"]
+
+FILTERED = frozenset({Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED,
+                      Verdict.NOT_OSCILLATING, Verdict.VALVE_NOT_RESPONDING})
+"""The verdicts that judge a loop (module doc); the others pass at once."""
+OUTCOMES = ("published", "held_back")
+HELD, HELD_END = "held", ". "
+"""How a held result's reason begins, and the end of that head (no head holds ". ")."""
+
+
+@dataclasses.dataclass
+class _Loop:
+    judged: Assessment  # the published judgement, as analysed
+    at: float  # the round that last judged so (wall Unix seconds)
+    away: int = 0  # rounds in a row whose verdict differed from it
+    held_since: float | None = None  # the first warming-up round it was held through
+
+
+class VerdictFilter:
+    """Per loop (by name, so a reload keeps it), what was published; see the module doc.
+    ``on_count`` hears each outcome counted (the metric)."""
+
+    def __init__(self, settings: HysteresisSettings | None = None, *,
+                 on_count: Callable[[str], None] | None = None) -> None:
+        self.settings = settings or HysteresisSettings()
+        self.on_count = on_count
+        self._loops: dict[str, _Loop] = {}
+        self.counts = dict.fromkeys(OUTCOMES, 0)
+
+    def _count(self, outcome: str) -> None:
+        self.counts[outcome] += 1
+        if self.on_count is not None:
+            self.on_count(outcome)
+
+    def publish(self, loop: str, new: Assessment, t: float, *,
+                shown: Assessment | None = None) -> Assessment:
+        """What to publish for ``loop`` this round, given its analysis ``new`` (at wall
+        time ``t``); ``shown``: what the loop shows now where this filter has not seen it
+        yet (a result restored from the state file or kept over a reload)."""
+        state = self._loops.get(loop)
+        if state is None and shown is not None and shown.verdict in FILTERED:
+            state = self._loops[loop] = _Loop(_unheld(shown), t)
+        if new.verdict not in FILTERED:
+            if new.verdict == Verdict.WARMING_UP and state is not None:
+                return self._hold_warming(state, new, t)
+            self._loops.pop(loop, None)  # nothing judged to keep
+            return new
+        if state is None or state.judged.verdict == new.verdict:
+            self._loops[loop] = _Loop(new, t)
+            return new
+        state.held_since = None
+        state.away += 1
+        if state.away >= self.settings.rounds or self._moved(state.judged, new):
+            self._loops[loop] = _Loop(new, t)
+            self._count("published")
+            return new
+        self._count("held_back")
+        moves = (f" or its confidence moves {self.settings.margin:g} from "
+                 f"{state.judged.confidence:.2f}" if state.judged.confidence is not None and
+                 new.confidence is not None and
+                 Verdict.STICTION in (state.judged.verdict, new.verdict) else "")
+        return _prefixed(state.judged, (
+            f"held: this round says {new.verdict}{_conf(new)}, published when it holds "
+            f"{self.settings.rounds} rounds ({state.away} so far){moves}"))
+
+    def _moved(self, old: Assessment, new: Assessment) -> bool:
+        """Into or out of ``stiction`` (the alarm), with the confidence moved by the
+        margin: a valve repaired, or one that began to stick."""
+        return (Verdict.STICTION in (old.verdict, new.verdict) and
+                old.confidence is not None and new.confidence is not None and
+                abs(new.confidence - old.confidence) >= self.settings.margin)
+
+    def _hold_warming(self, state: _Loop, new: Assessment, t: float) -> Assessment:
+        state.away = 0
+        if state.held_since is None:
+            state.held_since = t
+        self._count("held_back")
+        return _prefixed(state.judged, (
+            f"held since {_clock(state.held_since)}, last judged {_clock(state.at)}: "
+            f"{new.reason}"))
+
+    def keep(self, loops: Iterable[str]) -> None:
+        """Forget loops no longer configured (after a reload)."""
+        names = set(loops)
+        for name in [n for n in self._loops if n not in names]:
+            del self._loops[name]
+
+
+def _prefixed(a: Assessment, head: str) -> Assessment:
+    return dataclasses.replace(a, reason=f"{head}{HELD_END}{a.reason}")
+
+
+def _unheld(a: Assessment) -> Assessment:
+    """``a`` without the head a held result's reason starts with (a result restored from
+    the state file may be one): what was judged."""
+    if a.reason.startswith(HELD) and HELD_END in a.reason:
+        return dataclasses.replace(a, reason=a.reason.split(HELD_END, 1)[1])
+    return a
+
+
+def _conf(a: Assessment) -> str:
+    return "" if a.confidence is None else f" (confidence {a.confidence:.2f})"
+
+
+def _clock(t: float) -> str:
+    return time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(t))

@@ -1,0 +1,134 @@
+"""Verdict history output: which verdict each loop had on each day, kept beside the state file
+(``gateway.state`` -> ``gateway.verdicts``) so the engineer's findings are compared with the
+verdicts of their day across restarts and kills (:mod:`.history`, the file;
+:class:`gateway.core.findings.VerdictHistory`, what it holds).
+
+The sink loads the file when it starts (before the state file is restored, so restored
+assessments extend the history), writes it every ``gateway.persist_interval_s`` when it
+changed and once more when it stops; a failing write is logged once, and once when it works
+again. A file that cannot be used is set aside; the history starts afresh.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import datetime as dt
+import logging
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ...config.findings import verdicts_path
+from ...core.findings import FindingsBook
+from ..base import Binding
+from .history import HistoryError, read_history, set_aside, write_history
+
+__all__ = ["VerdictFile", "create_sink", "read_history"]
+
+log = logging.getLogger("gateway.state")
+
+
+def create_sink(binding: Binding, *, findings: FindingsBook | None = None, **_: Any
+                ) -> VerdictFile:
+    return VerdictFile(binding, findings if findings is not None else FindingsBook())
+
+
+class VerdictFile:
+    """Loads on :meth:`start`, writes when changed every persist interval and on :meth:`stop`."""
+
+    def __init__(self, binding: Binding, book: FindingsBook, *,
+                 wall: Callable[[], float] = time.time) -> None:
+        self.binding = binding
+        self.book = book
+        self.wall = wall
+        self.saves = 0
+        self.set_aside: Path | None = None
+        self._lock = asyncio.Lock()
+        self._task: asyncio.Task[None] | None = None
+
+    @property
+    def path(self) -> Path:
+        return verdicts_path(self.binding.config.gateway.state_file)
+
+    async def bind(self, binding: Binding) -> None:
+        before = self.path
+        self.binding = binding
+        if self.path != before:
+            log.warning("reload: the verdict history is written to %s from now on",
+                        self.path)
+            self.book.history.dirty = True
+
+    async def start(self) -> None:
+        self.load()
+        self._task = asyncio.create_task(self._persist(), name="persist verdicts")
+
+    def load(self) -> None:
+        p = self.path
+        for tmp in p.parent.glob(f".{p.name}.tmp-*"):  # left by a kill during a write
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        if not p.exists():
+            return
+        max_loops = 2 * len(self.binding.config.loops) + 1000
+        try:
+            self.book.history.load(read_history(p, max_loops=max_loops))
+        except HistoryError as exc:
+            with contextlib.suppress(OSError):
+                self.set_aside = set_aside(p, exc.kind)
+            log.warning("verdict history %s: %s; set aside as %s, the history starts afresh",
+                        p, exc, self.set_aside)
+            return
+        self.book.refresh(force=True)
+        log.info("verdict history %s: %d loops", p, len(self.book.history.loops))
+
+    async def save(self) -> int:
+        """Write the history now (atomically); returns its size in bytes."""
+        async with self._lock:
+            history = self.book.history
+            history.prune(dt.datetime.fromtimestamp(self.wall()).date())
+            data, history.dirty = history.to_data(), False
+            try:
+                write = asyncio.ensure_future(
+                    asyncio.to_thread(write_history, self.path, data, self.wall()))
+                size = await asyncio.shield(write)
+            except asyncio.CancelledError:
+                await asyncio.wait([write])  # the thread writes on: let it finish
+                raise
+            except BaseException:
+                history.dirty = True
+                raise
+            self.saves += 1
+            return size
+
+    async def _persist(self) -> None:
+        failing = False
+        while True:
+            interval = self.binding.config.gateway.persist_interval_s
+            await asyncio.sleep(interval)
+            if not self.book.history.dirty:
+                continue
+            try:
+                await self.save()
+            except Exception as exc:  # a full disk must not stop the gateway
+                if not failing:
+                    log.error("verdict history %s: write failed: %s (retrying every %g s)",
+                              self.path, exc, interval)
+                failing = True
+            else:
+                if failing:
+                    log.warning("verdict history %s: writing again", self.path)
+                failing = False
+
+    async def stop(self) -> None:
+        if self._task is None:
+            return  # never started: nothing loaded, nothing to write over the old file
+        self._task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await self._task
+        self._task = None
+        try:
+            await self.save()
+        except Exception:
+            log.exception("verdict history: final write failed")

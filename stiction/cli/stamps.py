@@ -1,0 +1,272 @@
+"""Time stamps as historians write them, read to Unix seconds.
+
+ISO 8601 (``2024-03-01 06:00:00``, ``...T06:00:00.5Z``, ``...+01:00``) and the common
+date-times of :data:`DATE_FORMATS`, each with fractional seconds, with or without a zone
+after the time: an offset (``+01:00``, ``UTC+1``, ``GMT-5``) or an abbreviation of
+:data:`ZONES` (``CET``, ``CEST``, ``EST``, ...). An abbreviation that names several zones
+(:data:`AMBIGUOUS`: ``CST`` is US Central, China or Cuba) is read only with ``--tz``, the
+historian's zone (an IANA name such as ``America/Chicago``, whose ``CST`` and ``CDT`` then
+pick the hour of a daylight-saving change, or an offset such as ``-06:00``); ``--tz`` is
+also the zone of stamps that name none (else UTC), a repeated hour at the end of summer
+time read in the order of the rows.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import functools
+import re
+import zoneinfo
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = ["AMBIGUOUS", "DATE_FORMATS", "EXAMPLES", "ZONES", "Dates", "ZoneError", "is_date",
+           "parse_tz", "read_dates"]
+
+DATE_FORMATS = (
+    "%d.%m.%Y %H:%M:%S", "%d.%m.%Y %H:%M",            # 01.03.2024 06:00:00
+    "%d/%m/%Y %H:%M:%S", "%d/%m/%Y %H:%M",            # 01/03/2024 06:00:00
+    "%m/%d/%Y %H:%M:%S", "%m/%d/%Y %H:%M",            # 03/01/2024 06:00:00
+    "%m/%d/%Y %I:%M:%S %p", "%m/%d/%Y %I:%M %p",      # 3/1/2024 6:00:00 AM
+    "%d-%b-%Y %H:%M:%S", "%d-%b-%y %H:%M:%S",          # 01-Mar-2024 06:00:00 (PI)
+    "%Y/%m/%d %H:%M:%S",                               # 2024/03/01 06:00:00
+)
+"""Date-time forms tried after ISO 8601, each also with fractional seconds; day-first and
+month-first both parse as the one under which time never goes back."""
+EXAMPLES = ("seconds, or dates like 2024-03-01 06:00:00, 2024-03-01T06:00:00Z, "
+            "01.03.2024 06:00:00, 3/1/2024 6:00:00 AM, 2024-03-01 06:00:00 CET")
+
+ZONES: dict[str, float] = {
+    "UTC": 0, "UT": 0, "GMT": 0, "Z": 0, "WET": 0, "WEST": 1, "CET": 1, "CEST": 2,
+    "MET": 1, "MEST": 2, "MEZ": 1, "MESZ": 2, "EET": 2, "EEST": 3, "MSK": 3, "SAST": 2,
+    "WAT": 1, "CAT": 2, "EAT": 3, "PKT": 5, "ICT": 7, "WIB": 7, "HKT": 8, "SGT": 8,
+    "AWST": 8, "JST": 9, "KST": 9, "ACST": 9.5, "ACDT": 10.5, "AEST": 10, "AEDT": 11,
+    "NZST": 12, "NZDT": 13, "NST": -3.5, "NDT": -2.5, "ADT": -3, "EST": -5, "EDT": -4,
+    "MST": -7, "MDT": -6, "PST": -8, "PDT": -7, "AKST": -9, "AKDT": -8, "HST": -10,
+    "BRT": -3, "ART": -3,
+}
+"""Zone abbreviations read as they are, hours east of UTC."""
+AMBIGUOUS: dict[str, str] = {
+    "CST": "US Central -06:00, China +08:00 or Cuba -05:00",
+    "CDT": "US Central -05:00 or Cuba -04:00",
+    "IST": "India +05:30, Ireland +01:00 or Israel +02:00",
+    "BST": "British summer +01:00 or Bangladesh +06:00",
+    "AST": "Atlantic -04:00 or Arabia +03:00",
+    "GST": "Gulf +04:00 or South Georgia -02:00",
+    "SST": "Samoa -11:00 or Singapore +08:00",
+}
+"""Abbreviations that name several zones: read only with ``--tz``."""
+
+_SUFFIX = re.compile(r"\s+(?:(?P<abbr>[A-Za-z]{1,5})(?P<off>[+-]\d{1,2}(?::?\d{2})?)?"
+                     r"|(?P<num>[+-]\d{2}:?\d{2}))$")
+_EPOCH = dt.datetime(1970, 1, 1)
+_OFFSET = re.compile(r"(?:UTC|GMT)?([+-])(\d{1,2})(?::?(\d{2}))?")
+
+
+class ZoneError(Exception):
+    """A zone the stamps name that cannot be read without ``--tz`` (``row``: its first)."""
+
+    def __init__(self, message: str, row: int) -> None:
+        super().__init__(message)
+        self.row = row
+
+
+def parse_tz(text: str) -> dt.tzinfo:
+    """``--tz``: an IANA zone name (``Europe/Berlin``), ``UTC``, or an offset (``+01:00``,
+    ``-0500``, ``UTC+1``); ValueError naming what it may be."""
+    m = _OFFSET.fullmatch(text.strip())
+    if m:
+        return _fixed(m)
+    if text.strip().upper() in ("UTC", "GMT", "Z"):
+        return dt.UTC
+    try:
+        return zoneinfo.ZoneInfo(text.strip())
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise ValueError(f"unknown zone {text!r}: give an IANA zone such as Europe/Berlin or "
+                         "America/Chicago, or an offset such as +01:00") from None
+
+
+def _fixed(m: re.Match[str]) -> dt.timezone:
+    sign = -1 if m[1] == "-" else 1
+    return dt.timezone(sign * dt.timedelta(hours=int(m[2]), minutes=int(m[3] or 0)))
+
+
+@dataclasses.dataclass(frozen=True)
+class Dates:
+    """Date-time cells read: Unix seconds and the zone to show them in."""
+
+    seconds: np.ndarray
+    zone: dt.tzinfo
+    """The zone of the first stamp (``--tz``, or the one it names; UTC for one without)."""
+    note: str | None = None
+    """How zones named by the stamps were read, when they named any."""
+
+
+def read_dates(cells: Sequence[str], tz: dt.tzinfo | None = None) -> Dates | None:
+    """Unix seconds of every cell under the first form that reads them all (of two that
+    do, the one under which time never goes back), or None when no form reads them all.
+    Raises :class:`ZoneError` for a zone that needs ``--tz``, or stamps with and without
+    a zone in one column."""
+    bodies: list[str] = []
+    tokens: list[str | None] = []
+    for c in cells:
+        m = _SUFFIX.search(c)
+        if m is None or (m["abbr"] and m["abbr"].upper() in ("AM", "PM") and not m["off"]):
+            bodies.append(c)
+            tokens.append(None)
+        else:
+            bodies.append(c[:m.start()])
+            tokens.append(m.group(0).strip())
+    zones = _zones(tokens, tz)
+    fallback = None
+    for form in ("iso", *DATE_FORMATS):
+        stamps = _parse_all(bodies, form)
+        if stamps is None:
+            continue
+        got = _seconds(stamps, tokens, zones, tz)
+        if np.all(np.diff(got.seconds) >= 0):
+            return got
+        fallback = fallback if fallback is not None else got
+    return fallback
+
+
+def _parse_all(bodies: Sequence[str], form: str) -> list[dt.datetime] | None:
+    out = []
+    for b in bodies:
+        stamp = _parse(b, form)
+        if stamp is None:
+            return None
+        out.append(stamp)
+    return out
+
+
+def _zones(tokens: Sequence[str | None], tz: dt.tzinfo | None) -> dict[str, dt.tzinfo]:
+    """Each zone token of the column -> its zone (``tz`` for an ambiguous one)."""
+    out: dict[str, dt.tzinfo] = {}
+    for i, token in enumerate(tokens):
+        if token is None or token in out:
+            continue
+        abbr = token.upper()
+        m = _OFFSET.fullmatch(abbr)
+        if m is not None:
+            out[token] = _fixed(m)
+        elif abbr in ZONES:
+            out[token] = dt.timezone(dt.timedelta(hours=ZONES[abbr]), abbr)
+        elif tz is not None:
+            out[token] = tz
+        elif abbr in AMBIGUOUS:
+            raise ZoneError(f"zone {token!r} names several zones ({AMBIGUOUS[abbr]}): give "
+                            "--tz with the historian's zone (e.g. --tz America/Chicago or "
+                            "--tz -06:00)", i)
+        else:
+            raise ZoneError(f"zone {token!r} is not one this reader knows: give --tz with "
+                            "the historian's zone (e.g. --tz Europe/Berlin or --tz +01:00)", i)
+    return out
+
+
+def _seconds(stamps: Sequence[dt.datetime], tokens: Sequence[str | None],
+             zones: dict[str, dt.tzinfo], tz: dt.tzinfo | None) -> Dates:
+    out = np.empty(len(stamps))
+    named = [k is not None or s.tzinfo is not None for s, k in zip(stamps, tokens, strict=True)]
+    if tz is None and any(named) and not all(named):
+        raise ZoneError("some time stamps name a zone and some do not: give --tz with the "
+                        "zone of those that do not", named.index(False))
+    prev = -np.inf
+    fixed: dict[str | None, float] = {  # zone -> seconds east of UTC, for fixed offsets
+        k: z.utcoffset(None).total_seconds()
+        for k, z in [*zones.items(), (None, tz or dt.UTC)] if isinstance(z, dt.timezone)}
+    for i, (s, token) in enumerate(zip(stamps, tokens, strict=True)):
+        if s.tzinfo is not None and token is None:
+            out[i] = prev = s.timestamp()
+        elif token in fixed:  # the common case: no zone, or a fixed one; ten times faster
+            out[i] = prev = (s.replace(tzinfo=None) - _EPOCH).total_seconds() - fixed[token]
+        else:
+            zone = zones[token] if token is not None else tz or dt.UTC
+            out[i] = prev = _localise(s.replace(tzinfo=None), zone, token, prev, i).timestamp()
+    first = stamps[0].tzinfo if tokens[0] is None else zones[tokens[0]]
+    note = None
+    shown = sorted({k for k in tokens if k is not None})
+    if shown:
+        note = "time zones read: " + ", ".join(
+            f"{k} {_offset_text(zones[k], stamps[tokens.index(k)])}" for k in shown[:6])
+    return Dates(out, tz or first or dt.UTC, note)
+
+
+def _localise(s: dt.datetime, zone: dt.tzinfo, token: str | None, prev: float, row: int
+              ) -> dt.datetime:
+    """A wall-clock time in ``zone``: in the repeated hour of a daylight-saving change the
+    one whose abbreviation is ``token``, else the one that does not go back in time."""
+    first = s.replace(tzinfo=zone)
+    if not isinstance(zone, zoneinfo.ZoneInfo):
+        return first
+    second = s.replace(tzinfo=zone, fold=1)
+    if token is not None:
+        for c in (first, second):
+            if c.tzname() == token.upper():
+                return c
+        raise ZoneError(f"zone {token!r} is not {zone.key}'s at {s:%Y-%m-%d %H:%M} "
+                        f"({first.tzname()}): give --tz with the historian's zone", row)
+    if first.utcoffset() != second.utcoffset() and first.timestamp() < prev:
+        return second
+    return first
+
+
+def _offset_text(zone: dt.tzinfo, at: dt.datetime) -> str:
+    off = zone.utcoffset(at.replace(tzinfo=None)) or dt.timedelta(0)
+    minutes = int(off.total_seconds() // 60)
+    sign = "-" if minutes < 0 else "+"
+    return f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+
+
+_FIELDS = {
+    "d": r"(?P<d>\d{1,2})", "m": r"(?P<m>\d{1,2})", "Y": r"(?P<Y>\d{4})", "y": r"(?P<y>\d{2})",
+    "H": r"(?P<H>\d{1,2})", "I": r"(?P<H>\d{1,2})", "M": r"(?P<M>\d{1,2})",
+    "S": r"(?P<S>\d{1,2})(?:\.(?P<f>\d{1,6}))?", "p": r"(?P<p>[AaPp][Mm])",
+    "b": r"(?P<b>[A-Za-z]{3})",
+}
+_MONTHS = {m: i for i, m in enumerate(
+    ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec"), 1)}
+
+
+@functools.cache
+def _pattern(form: str) -> re.Pattern[str]:
+    """A strptime form as a regular expression (strptime itself is ten times slower)."""
+    parts = re.split(r"%(\w)", form)
+    return re.compile("".join(_FIELDS[p] if i % 2 else re.escape(p)
+                              for i, p in enumerate(parts)))
+
+
+def _parse(cell: str, form: str) -> dt.datetime | None:
+    """The cell as ISO 8601 (``form`` "iso") or as a form of :data:`DATE_FORMATS` (read
+    as :func:`datetime.datetime.strptime` does, fractional seconds allowed), or None."""
+    try:
+        if form == "iso":
+            if cell[:4].isdigit() and len(cell) >= 10 and cell[4] == "-":
+                return dt.datetime.fromisoformat(cell)
+            return None
+        m = _pattern(form).fullmatch(cell)
+        if m is None:
+            return None
+        g = m.groupdict()
+        year = int(g["Y"]) if g.get("Y") else 2000 + int(g["y"]) - (100 if int(g["y"]) > 68
+                                                                       else 0)
+        month = int(g["m"]) if g.get("m") else _MONTHS.get(g["b"].casefold(), 0)
+        hour = int(g["H"])
+        if g.get("p"):
+            if not 1 <= hour <= 12:
+                return None
+            hour = hour % 12 + (12 if g["p"].upper() == "PM" else 0)
+        micro = int((g.get("f") or "0").ljust(6, "0"))
+        return dt.datetime(year, month, int(g["d"]), hour, int(g["M"]), int(g.get("S") or 0),
+                           micro)
+    except ValueError:
+        return None
+
+
+def is_date(cell: str) -> bool:
+    """Whether one form reads the cell (its zone aside)."""
+    m = _SUFFIX.search(cell)
+    body = cell if m is None else cell[:m.start()]
+    return any(_parse(body, f) is not None for f in ("iso", *DATE_FORMATS))
