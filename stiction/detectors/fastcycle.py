@@ -66,15 +66,15 @@ class FastCycle:
 
 
 def _kurtosis(x: FloatArray) -> float:
-    y = x - x.mean()
+    y = x - np.add.reduce(x) / x.size
     y2 = y * y
-    v = float(y2.mean())
-    return float((y2 * y2).mean()) / (v * v) - 3.0 if v > 0 else 0.0
+    v = float(np.add.reduce(y2) / y2.size)
+    return float(np.add.reduce(y2 * y2) / y2.size) / (v * v) - 3.0 if v > 0 else 0.0
 
 
 def _crossing(x: FloatArray) -> float:
     above = x > median(x)
-    return float(np.mean(above[1:] != above[:-1]))
+    return np.count_nonzero(above[1:] != above[:-1]) / (above.size - 1)
 
 
 def fast_cycle(op: FloatArray, pv: FloatArray) -> FastCycle:

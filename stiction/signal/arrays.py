@@ -58,7 +58,7 @@ def order_statistics(x: NDArray[np.floating[Any]], ks: set[int]) -> dict[int, fl
     exact = True  # head holds exactly the head.size smallest values, none used yet
     for k in sorted(ks, reverse=True):
         if exact and k == head.size - 1:
-            out[k] = float(head.max())
+            out[k] = float(np.maximum.reduce(head))
             exact = False
         else:
             part = head.copy()
@@ -87,7 +87,7 @@ def medians(a: NDArray[np.floating[Any]]) -> FloatArray:
     p = np.partition(a, h, axis=-1)
     if a.shape[-1] % 2:
         return np.asarray(p[..., h])
-    return np.asarray((p[..., :h].max(axis=-1) + p[..., h]) / 2.0)
+    return np.asarray((np.maximum.reduce(p[..., :h], axis=-1) + p[..., h]) / 2.0)
 
 
 def percentiles(x: NDArray[np.floating[Any]], q: tuple[float, ...]) -> tuple[float, ...]:
@@ -121,14 +121,14 @@ def unit_detrended(x: NDArray[np.floating[Any]], *, name: str, min_samples: int
         return f"record too short to tell: {n} samples"
     if not np.isfinite(x).all():
         return f"{name} has non-finite samples"
-    peak = float(np.abs(x).max())
+    peak = float(np.maximum.reduce(np.abs(x)))
     if peak == 0.0:
         return f"{name} is constant"
     y = x / peak
     t, tt = centred_time(n)
-    y = y - y.mean()
+    y = y - np.add.reduce(y) / n
     y = y - (dot(t, y) / tt) * t
-    span = float(np.abs(y).max())
+    span = float(np.maximum.reduce(np.abs(y)))
     if not span > FLAT:
         return f"{name} is constant"
     return np.asarray(y / span, dtype=np.float64)
