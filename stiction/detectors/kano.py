@@ -205,8 +205,8 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None,
     y = (pv - 0.5 * (pp[0] + pp[2])) / r_pv  # centred on PV's mid-range
     # the noise SD scales with the signal: of the scaled copies, that of the raw signals
     sd_u, sd_y = (noise[0] / r_op, noise[1] / r_pv) if noise else (noise_sd(u), noise_sd(y))
-    cu = np.concatenate(([0.0], np.cumsum(u)))
-    cy = np.concatenate(([0.0], np.cumsum(y)))
+    cu = np.concatenate(([0.0], u.cumsum()))
+    cy = np.concatenate(([0.0], y.cumsum()))
     t = np.arange(m, n - m + 1)
     dy = (cy[t + m] - 2.0 * cy[t] + cy[t - m]) / m  # mean after - mean before
     eps_y = max(STILL_Z * sd_y * math.sqrt(2.0 / m), STILL_RANGE)

@@ -92,7 +92,7 @@ class StickSlip:
 
 def _prefix(x: FloatArray) -> FloatArray:
     """Prefix sums of ``x``, 0 first (once per window: both scales read them)."""
-    return np.concatenate(([0.0], np.cumsum(x)))
+    return np.concatenate(([0.0], x.cumsum()))
 
 
 def _means(c: FloatArray, m: int) -> FloatArray:

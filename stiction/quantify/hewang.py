@@ -153,8 +153,8 @@ def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
     # closed-form fit for both
     w_all = idx.shape[1]
     side = np.empty((cols.shape[0], 2, *yy.shape))
-    np.cumsum(cols, axis=2, out=side[:, 0])
-    np.cumsum(cols[..., :0:-1], axis=2, out=side[:, 1, :, w_all - 2 :: -1])
+    cols.cumsum(axis=2, out=side[:, 0])
+    cols[..., :0:-1].cumsum(axis=2, out=side[:, 1, :, w_all - 2 :: -1])
     side[:, 1, :, -1] = 0.0
     width = w_all - 2 * margin
     c = np.arange(margin, margin + width, dtype=np.float64)[None, :]  # split: [0, c), [c, n)

@@ -126,7 +126,7 @@ def _interval_sums(y: FloatArray, i: np.ndarray, j: np.ndarray, refs: FloatArray
     """Sums (n, Sg, Sgg, Sy, Syg, Syy) of ``y ~ a + b g(t - refs[k])`` over each nonempty
     ``[i[k], j[k])``, as a (6, K) array: one flat pass, no padding."""
     lengths = j - i
-    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    starts = np.concatenate(([0], lengths.cumsum()[:-1]))
     seg = np.repeat(np.arange(i.size), lengths)
     idx = np.arange(int(lengths.sum())) + (i - starts)[seg]
     t_rel = idx - refs[seg]
@@ -151,7 +151,7 @@ def _segment_sums(
 def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float) -> float:
     """Common time constant (samples) of the exponentials of all half cycles."""
     lengths = bounds[:, 1] - bounds[:, 0]
-    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    starts = np.concatenate(([0], lengths.cumsum()[:-1]))
     seg_id = np.repeat(np.arange(lengths.size), lengths)
     idx = np.arange(int(lengths.sum())) + (bounds[:, 0] - starts)[seg_id]
     neg_t = -(idx - refs[seg_id])
@@ -272,8 +272,8 @@ def _refine_rows(y: FloatArray, ends: tuple[np.ndarray, ...],
     sums[0, :k] = np.minimum(col[None, :], lengths[:, None])
     sums[0, k:] = np.maximum(lengths[:, None] - col[None, :], 0)
     sums[1:, :k, 0] = 0.0
-    np.cumsum(part[:, :k, :-1], axis=2, out=sums[1:, :k, 1:])  # left: over [c_lo, c)
-    np.cumsum(part[:, k:, ::-1], axis=2, out=sums[1:, k:, ::-1])  # right: over [c, c_hi)
+    part[:, :k, :-1].cumsum(axis=2, out=sums[1:, :k, 1:])  # left: over [c_lo, c)
+    part[:, k:, ::-1].cumsum(axis=2, out=sums[1:, k:, ::-1])  # right: over [c, c_hi)
     sums += bulk[..., None]
     r, a, b = closed_rss(sums)
     best = np.where(mc, r[:k] + r[k:], np.inf).argmin(axis=1)

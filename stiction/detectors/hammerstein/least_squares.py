@@ -53,17 +53,15 @@ class Target:
         ok = jj < m
         jc = np.minimum(jj, m - 1)
         cross = np.concatenate((np.where(ok, v[jc], 0.0), np.where(ok, t[jc], 0.0)), axis=1)
-        cv = np.concatenate(([0.0], np.cumsum(v[::-1])))  # suffix sums: sum over [d, m)
-        ct = np.concatenate(([0.0], np.cumsum(t[::-1])))
-        ctt = np.concatenate(([0.0], np.cumsum((t * t)[::-1])))
-        cvt = np.concatenate(([0.0], np.cumsum((v * t)[::-1])))
-        cvv = np.concatenate(([0.0], np.cumsum((v * v)[::-1])))
+        # suffix sums of v, t, t^2, v t and v^2 (column d: the sum over [m - d, m)), in one pass
+        suffix = np.zeros((5, m + 1))
+        np.array((v, t, t * t, v * t, v * v))[:, ::-1].cumsum(axis=1, out=suffix[:, 1:])
         k = m - lags
         n = k.astype(np.float64)
-        st, stt, sv, svt = ct[k], ctt[k], cv[k], cvt[k]
+        sv, st, stt, svt, svv = suffix[:, k]
         det = n * stt - st * st
         det = np.where(det > 0, det, 1.0)
-        svv_c = cvv[k] - _proj((n, st, stt, det), sv, svt, sv, svt)
+        svv_c = svv - _proj((n, st, stt, det), sv, svt, sv, svt)
         return cls(lags, cross, n, st, stt, sv, svt, det, svv_c, np.where(svv_c > 0, svv_c, 1.0))
 
     def proj(self, a1: FloatArray, at: FloatArray, b1: FloatArray, bt: FloatArray) -> FloatArray:
@@ -74,18 +72,16 @@ class Target:
         """Residual share of variance and gain of ``target ~ g y(t - lag) + c + b t`` for each
         row of ``y`` and each lag: arrays (rows, lags)."""
         m = y.shape[1]
-        k = m - self.lags
         # sums over [0, m - lag): the whole row less a short tail
         width = int(np.maximum.reduce(self.lags)) if self.lags.size else 0
-        tail = y[:, m - width :]
         y2 = y * y
-        t1 = np.concatenate((np.cumsum(tail[:, ::-1], axis=1)[:, ::-1], np.zeros((y.shape[0], 1))),
-                            axis=1)
-        t2 = np.concatenate((np.cumsum(y2[:, m - width :][:, ::-1], axis=1)[:, ::-1],
-                             np.zeros((y.shape[0], 1))), axis=1)
-        pos = k - (m - width)
-        sy = np.add.reduce(y, axis=1)[:, None] - t1[:, pos]
-        syy = np.add.reduce(y2, axis=1)[:, None] - t2[:, pos]
+        # the tails' sums of y and y^2 (column d: the last d samples), in one pass
+        tails = np.zeros((2, y.shape[0], width + 1))
+        np.array((y[:, m - width :], y2[:, m - width :]))[..., ::-1].cumsum(
+            axis=2, out=tails[..., 1:])
+        tail = tails[..., self.lags]
+        sy = np.add.reduce(y, axis=1)[:, None] - tail[0]
+        syy = np.add.reduce(y2, axis=1)[:, None] - tail[1]
         c = _product(y, self.cross)
         nl = self.lags.size
         syv, syt = c[:, :nl], c[:, nl:]

@@ -374,7 +374,7 @@ def controller_sign(u: FloatArray, y: FloatArray, period: float) -> float:
     if u.size < 4 * lag:
         return 0.0
     du = u[lag:] - u[:-lag]
-    cy = np.concatenate(([0.0], np.cumsum(y - mean(y))))
+    cy = np.concatenate(([0.0], (y - mean(y)).cumsum()))
     my = (cy[lag + 1 :] - cy[1:-lag]) / lag  # mean PV over (t - lag, t]
     c = float(dot(du - mean(du), my))
     return 0.0 if c == 0 else (-1.0 if c > 0 else 1.0)

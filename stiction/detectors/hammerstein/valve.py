@@ -56,7 +56,7 @@ def sticky_valve(u: FloatArray, piv: np.ndarray, s_band: FloatArray,
     s_x = np.concatenate(([-s[0]], s))
     seg = np.zeros(m, dtype=np.intp)
     seg[piv[1:-1] + 1] = 1
-    seg = np.cumsum(seg)
+    seg = seg.cumsum()
     st = s[seg]
     big = 4.0 * (float(np.maximum.reduce(np.abs(u))) + 1.0)
     run_ext = st * (np.maximum.accumulate(st * u + big * seg) - big * seg)
@@ -87,7 +87,7 @@ def sticky_valve(u: FloatArray, piv: np.ndarray, s_band: FloatArray,
     thr = np.where(s_x[ref] == s[None, :], jb, sb)
     beyond = np.maximum(0.0, s * (ext - e_ref) - thr - jb)
     step = np.where(slip, s * (jb + beyond), 0.0)
-    level = np.concatenate((np.zeros((nc, 1)), np.cumsum(step, axis=1)[:, :-1]), axis=1)
+    level = np.concatenate((np.zeros((nc, 1)), step.cumsum(axis=1)[:, :-1]), axis=1)
     d = st * (run_ext - e_ref[:, seg]) - thr[:, seg]
     vp = level[:, seg] + np.where(d > 0, st * (jb + np.maximum(0.0, d - jb)), 0.0)
     return np.asarray(vp)

@@ -64,7 +64,7 @@ def swing_at_onsets(u: FloatArray, vp: FloatArray, lag: int) -> float | None:
         return None
     sign = np.sign(dv[idx])
     new = np.concatenate(([True], (idx[1:] - idx[:-1] > 1) | (sign[1:] != sign[:-1])))
-    run = np.cumsum(new) - 1
+    run = new.cumsum() - 1
     w = np.abs(dv[idx])
     centre = np.bincount(run, w * idx) / np.bincount(run, w)
     onset = np.rint(centre).astype(np.intp) + 1 + lag
