@@ -216,7 +216,8 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     if not (np.isfinite(op).all() and np.isfinite(pv).all()):
         return _none("non-finite samples")
     # scale first: the filters and the fit then see numbers of order one whatever the units
-    r_op, r_pv = float(np.ptp(op)), float(np.ptp(pv))
+    r_op = float(np.maximum.reduce(op) - np.minimum.reduce(op))  # np.ptp, without its layers
+    r_pv = float(np.maximum.reduce(pv) - np.minimum.reduce(pv))
     if not (r_op > 0 and r_pv > 0):
         return _none("OP or PV does not move")
     if not (math.isfinite(r_op) and math.isfinite(r_pv)):
