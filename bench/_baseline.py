@@ -55,7 +55,9 @@ def baseline_stiction(ref: str | None = None) -> Iterator[tuple[str, ModuleType]
 
 def analyze_of(package: ModuleType) -> Callable[..., Any]:
     """The package's ``analyze`` (``stiction`` or the baseline)."""
-    return importlib.import_module(package.__name__ + ".diagnosis.analyze").analyze
+    module = importlib.import_module(package.__name__ + ".diagnosis.analyze")
+    fn: Callable[..., Any] = module.analyze
+    return fn
 
 
 STAGES = ("data gates", "cycle", "noise SDs")
@@ -103,7 +105,7 @@ class StageClock:
         self._patch(a, "size_valve", "sizing")
         if hasattr(a, "quantify"):  # forced sizing (the paper's rows) is sizing too
             self._patch(a, "quantify", "sizing")
-        reg = self._registry
+        reg: Any = self._registry
         old = reg.DETECTORS
         self._undo.append((reg, "DETECTORS", old))
         reg.DETECTORS = tuple(type(d)(d.name, self._timed(d.name, d.run), d.reference)

@@ -29,7 +29,7 @@ from stiction.scenarios import simulate
 from stiction.signal.oscillation import detect_oscillation
 
 TARGET_FFTS = 200.0  # analyze's median at most this many FFTs of the same window (issue 28)
-CASES = [
+CASES: list[tuple[str, str, dict[str, Any]]] = [
     ("stiction, sized (table4-case2)", "table4-case2", {"kp": 1.0}),
     ("stiction, sized (table5-case2, integrating)", "table5-case2",
      {"kp": 0.2, "process": "integrating"}),
