@@ -208,8 +208,8 @@ def report(totals: dict[str, Any]) -> None:
 def tep_runs() -> list[tuple[Any, dict[str, Assessment]]]:
     """The corpus's TEP plant runs, every loop analysed (self-regulating: the analysis is
     told nothing); cached by stiction's code and the runs. Empty without the corpus."""
-    from bench.corpus import load_plant_runs  # noqa: PLC0415  (the built corpus)
-    from bench.train import _code_key  # noqa: PLC0415
+    from lab.features.rows import code_key as _code_key  # noqa: PLC0415
+    from lab.labels.corpus import load_plant_runs  # noqa: PLC0415  (the built corpus)
 
     runs = [r for r in load_plant_runs() if r.source.startswith("tep-mode")]
     if not runs:

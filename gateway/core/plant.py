@@ -13,8 +13,9 @@ together by :func:`stiction.plant.analyze_plant` (docs/architecture.md):
    number from round to round while it shares loops with the one before (new groups take the
    lowest free number, so numbers stay small: the Modbus register holds 1-255), and says
    when a group appears, changes its source or ends (one log line each).
-4. :class:`PlantView` is what the store holds: the groups and, per loop, its group number
-   and role.
+What the store holds, :class:`.plantview.PlantView` (the groups and, per loop, its group
+number and role), is a module of its own: the store imports it, this module imports the
+windows, and the windows the store, so nothing imports in a circle.
 """
 
 from __future__ import annotations
@@ -29,20 +30,15 @@ from numpy.typing import NDArray
 
 from stiction import Assessment
 
+from .plantview import MAX_GROUP_NUMBER, PlantGroup, PlantView
 from .points import Quality
+from .windows import LoopGroup
 
 if TYPE_CHECKING:  # the analysis only in the worker (it brings in scipy.signal, ~0.5 s)
     from stiction.plant import PlantAssessment
 
-if TYPE_CHECKING:  # windows -> store -> plant: the type only
-    from .windows import LoopGroup
+__all__ = ["CHUNK", "PlantJob", "PlantTracker", "analyze_plant_job", "plant_jobs"]
 
-__all__ = ["CHUNK", "MAX_GROUP_NUMBER", "ROLE_CODES", "PlantGroup", "PlantJob", "PlantTracker",
-           "PlantView", "analyze_plant_job", "plant_jobs"]
-
-ROLE_CODES = {"": 0, "source": 1, "follower": 2}
-"""A loop's role as a number (Modbus register +18, high byte): 0 in no group."""
-MAX_GROUP_NUMBER = 255  # the register's low byte
 CHUNK = 512  # loops copied out of a bank at once (bounds the copies' memory)
 
 
@@ -127,44 +123,6 @@ def analyze_plant_job(job: PlantJob) -> PlantAssessment:
     loops = {name: (job.op[k], job.pv[k]) for k, name in enumerate(job.names)}
     return analyze_plant(loops, ts=job.ts, assessments=job.assessments,
                          processes=job.processes)
-
-
-@dataclasses.dataclass(frozen=True)
-class PlantGroup:
-    """One group as the outputs see it: its ``number`` (stable while it lasts), period,
-    source loop (None: no loop analysed is the source) and member loops."""
-
-    number: int
-    period_s: float
-    source: str | None
-    loops: tuple[str, ...]
-    reason: str = ""
-
-
-@dataclasses.dataclass(frozen=True)
-class PlantView:
-    """The groups and, per loop in one, its (group number, role)."""
-
-    groups: tuple[PlantGroup, ...] = ()
-    roles: Mapping[str, tuple[int, str]] = dataclasses.field(default_factory=dict)
-
-    def of(self, loop: str) -> tuple[int, str, str | None]:
-        """(group number, role, source) of ``loop``; (0, "", None) when in no group."""
-        number, role = self.roles.get(loop, (0, ""))
-        if number == 0:
-            return 0, "", None
-        return number, role, self.group(number).source
-
-    def group(self, number: int) -> PlantGroup:
-        return self._by_number[number]
-
-    @property
-    def _by_number(self) -> dict[int, PlantGroup]:
-        cache: dict[int, PlantGroup] | None = self.__dict__.get("_cache")
-        if cache is None:
-            cache = {g.number: g for g in self.groups}
-            object.__setattr__(self, "_cache", cache)
-        return cache
 
 
 class PlantTracker:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gateway.config import load_config, parse_config
-from gateway.core.plant import PlantGroup, PlantView
+from gateway.core.plantview import PlantGroup, PlantView
 from gateway.core.store import ResultStore
 from gateway.errors import ConfigError
 from plcsim import gateway_config as sim_gateway_config

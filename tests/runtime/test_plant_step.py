@@ -19,7 +19,8 @@ from plant_fixtures import plant_records
 
 from gateway.cli import main
 from gateway.config import LoopConfig, PlantSettings, PointConfig, load_config, parse_config
-from gateway.core.plant import PlantGroup, PlantTracker, PlantView, plant_jobs
+from gateway.core.plant import PlantTracker, plant_jobs
+from gateway.core.plantview import PlantGroup, PlantView
 from gateway.core.points import Quality
 from gateway.core.store import ResultStore
 from gateway.core.windows import LoopGroup, WindowBank, load_columns
