@@ -118,10 +118,10 @@ def tep_runs() -> list[tuple[Any, dict[str, Assessment]]]:
     """The corpus's TEP plant runs, every loop analysed (self-regulating: the analysis is
     told nothing); cached by stiction's code and the runs. Empty without the corpus;
     ``PLANTWIDE_CORPUS`` names another corpus folder (a copy being built: the runs so far)."""
-    from bench.corpus import CACHE as CORPUS  # noqa: PLC0415  (the built corpus)
-    from bench.corpus import load_plant_runs  # noqa: PLC0415
+    from lab import _cache  # noqa: PLC0415  (the built corpus)
+    from lab.labels.corpus import load_plant_runs  # noqa: PLC0415
 
-    folder = Path(os.environ.get("PLANTWIDE_CORPUS", str(CORPUS)))
+    folder = Path(os.environ.get("PLANTWIDE_CORPUS", str(_cache.corpus())))
     runs = [r for r in load_plant_runs(cache=folder) if r.source.startswith("tep-mode")]
     if not runs:
         return []

@@ -13,7 +13,7 @@ bench/_plantwide_data.py):
   seeds, reported apart. A sticky valve counts for "named" when its cycle is resolved
   (at least 4 samples a period: at 60 s a two-minute cycle is not, and is counted apart),
   visible, and reaches another loop in that view (:func:`reaches`).
-- **TEP plant runs** (``bench/corpus.py``'s ``load_plant_runs``, when the corpus is built):
+- **TEP plant runs** (``lab.labels.corpus.load_plant_runs``, when the corpus is built):
   the XMV loops and XMEAS indicators of each revised Tennessee Eastman run, 24 h at 36 s.
 
 Per kind and view: sticky valves whose cycle reaches others, named the source of their
@@ -221,7 +221,7 @@ def tep() -> None:
                 1 for g in pa.groups for n in (g.source, *g.also_sources)
                 if n is not None and after[n].verdict == Verdict.STICTION)
     if not c:
-        print("== plant-wide: TEP runs: skipped (python -m bench corpus builds them) ==")
+        print("== plant-wide: TEP runs: skipped (python -m lab corpus builds them) ==")
         return
     print(f"== plant-wide: TEP runs ({c['sticky runs']} with a sticking valve, "
           f"{c['clean runs']} without) ==")
