@@ -29,16 +29,16 @@ demo: $(STAMP)
 	$(BIN)/stiction-gateway demo $(DEMO_ARGS)
 
 test: $(STAMP)
-	$(BIN)/ruff check stiction gateway plcsim tests bench
-	$(BIN)/mypy stiction gateway plcsim
+	$(BIN)/ruff check stiction gateway plcsim lab tests bench
+	$(BIN)/mypy stiction gateway plcsim lab
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not timing"
 	$(BIN)/python -m pytest -q -m timing
 
 lint: $(STAMP)
-	$(BIN)/ruff check stiction gateway plcsim tests bench
+	$(BIN)/ruff check stiction gateway plcsim lab tests bench
 
 typecheck: $(STAMP)
-	$(BIN)/mypy stiction gateway plcsim
+	$(BIN)/mypy stiction gateway plcsim lab
 
 $(BENCH_STAMP): $(STAMP)
 	$(BIN)/pip install --quiet --constraint $(LOCK) -e '.[dev,plot,bench]'
@@ -47,10 +47,10 @@ $(BENCH_STAMP): $(STAMP)
 bench: $(BENCH_STAMP)
 	$(BIN)/python -m bench
 
-# the development corpus (bench/corpus.py): builds what bench/.cache/corpus lacks, then
+# the development corpus (lab/labels/corpus.py): builds what lab/.cache/corpus lacks, then
 # prints its summary; the first build takes about an hour of one core
 corpus: $(BENCH_STAMP)
-	$(BIN)/python -m bench corpus
+	$(BIN)/python -m lab corpus
 
 soak: $(STAMP)
 	$(BIN)/python -m bench.soak

@@ -12,7 +12,8 @@ import pkgutil
 import sys
 from pathlib import Path
 
-# own make targets (make soak, make corpus) or their own command (python -m bench.train)
+# own make targets (make soak, make corpus) or their own command (python -m lab train);
+# corpus, train and calibrate here are the old names of lab's commands
 SKIP = {"soak", "corpus", "corpus_baseline", "train"}
 # as the gateway's analysis workers (gateway.runtime.scheduler): one BLAS thread each, set
 # before numpy is first imported

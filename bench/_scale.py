@@ -339,17 +339,25 @@ def _read_json_line(proc: subprocess.Popen[str], what: str) -> dict[str, Any]:
     return dict(json.loads(line))
 
 
-def _child(args: list[str], log: Any) -> subprocess.Popen[str]:
+def _child(args: list[str], log: Any, tree: Path | None = None) -> subprocess.Popen[str]:
+    """``python -m bench._scale ARGS``; with ``tree`` (a baseline's packages, see
+    bench/_arena.py) its ``gateway``, ``plcsim`` and ``stiction`` are imported, not this
+    repository's (only ``bench`` comes from here)."""
+    repo = Path(__file__).resolve().parent.parent
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    if tree is not None:
+        env["PYTHONPATH"] = os.pathsep.join((str(tree), str(repo)))
     return subprocess.Popen([sys.executable, "-m", "bench._scale", *args],
                             stdout=subprocess.PIPE, stderr=log, text=True, env=env,
-                            cwd=Path(__file__).resolve().parent.parent)
+                            cwd=tree or repo)
 
 
 def run_scale(loops: int, *, plcs: int | None = None, duration: float = 60.0,
               warmup: float = 5.0, window_s: float = 3600.0, analysis: bool = False,
-              workers: int = 0) -> ScaleResult:
-    """Run M=``loops`` loops from ``plcs`` simulated PLCs for ``duration`` s (see module)."""
+              workers: int = 0, tree: Path | None = None) -> ScaleResult:
+    """Run M=``loops`` loops from ``plcs`` simulated PLCs for ``duration`` s (see module);
+    ``tree``: run the PLCs and the gateway of that tree (a baseline's) instead of this
+    repository's."""
     plcs = plcs or default_plcs(loops)
     procs: list[subprocess.Popen[str]] = []
     with tempfile.TemporaryDirectory(prefix="bench-scale-") as tmp:
@@ -363,14 +371,14 @@ def run_scale(loops: int, *, plcs: int | None = None, duration: float = 60.0,
                 path.write_text(yaml.safe_dump(sim_config(k, first, n, window_s=window_s)))
                 paths.append(str(path))
                 first += n
-            sims = [_child(["sim", p], log) for p in paths]
+            sims = [_child(["sim", p], log, tree) for p in paths]
             procs += sims
             ports = [_read_json_line(p, "plc-sim")["port"] for p in sims]
             spec = {"sims": paths, "ports": ports, "duration": duration, "warmup": warmup,
                     "analysis": analysis, "workers": workers}
             spec_path = Path(tmp) / "gateway.json"
             spec_path.write_text(json.dumps(spec))
-            gw = _child(["gateway", str(spec_path)], log)
+            gw = _child(["gateway", str(spec_path)], log, tree)
             procs.append(gw)
             res = _read_json_line(gw, "gateway")
             gw.wait(timeout=60)

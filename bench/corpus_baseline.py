@@ -1,6 +1,6 @@
 """Today's ``stiction.analyze`` on the development corpus: the "before" of issue 24.
 
-``python -m bench corpus_baseline`` (after ``python -m bench corpus``) analyses every window
+``python -m bench corpus_baseline`` (after ``python -m lab corpus``) analyses every window
 (``CORPUS_BASELINE_N=k``: at most k per source, view and cause class, drawn with a fixed
 seed) as the gateway would, ``analyze(op, pv, ts=ts, process=process)``, and prints the
 share called: ``stiction`` or ``valve_not_responding`` (as bench/real_data.py counts them).
@@ -19,10 +19,10 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from lab.labels.corpus import Window, load_windows
+from lab.sources import tep
+from lab.windows.tep import settled
 from stiction import analyze
-
-from ._corpus_types import Window
-from .corpus import load_windows
 
 CALLS = ("stiction", "valve_not_responding")
 
@@ -60,18 +60,15 @@ def reported_failure() -> None:
     """Mode 1, seed 3, 48 h, 36 s samples, XMV 10 -> reactor temperature (XMEAS 9), with
     IDV 11 (random cooling-water inlet temperature) and with IDV 14 (sticky valve, 2 %)."""
     try:
-        from . import _corpus_tep, _tep  # noqa: PLC0415
-        from .corpus import CACHE  # noqa: PLC0415
-
-        settled = _corpus_tep._settled("mode1", CACHE / "tep")
+        start = settled("mode1")
     except ImportError:
         print("\n  reported failure: skipped (tep-studio not installed)")
         return
     print("\n  reported failure: mode 1, seed 3, 48 h, XMV 10 -> reactor temperature "
           "(onset 0.5 h)")
-    j = [lp.name for lp in _tep.LOOPS].index("XMV10")
+    j = [lp.name for lp in tep.LOOPS].index("XMV10")
     for name, idvs, bands in (("IDV 11", [(11, 1.0)], {}), ("IDV 14 (2 %)", [], {9: 2.0})):
-        a = _tep.run(settled, 3, idvs, bands, onset_h=0.5, record_h=(0.0, 48.0))
+        a = tep.run(start, 3, idvs, bands, onset_h=0.5, record_h=(0.0, 48.0))
         for label, first in (("all 48 h", 0), ("from 4.5 h", round(4.5 * 3600 / 1.8))):
             op, pv = a.op[first:, j][19::20], a.pv[first:, j][19::20]  # 36 s snapshots
             r = analyze(op, pv, ts=36.0)
@@ -84,7 +81,7 @@ def main() -> None:
     per_group = os.environ.get("CORPUS_BASELINE_N")
     windows = _sample(load_windows(), int(per_group) if per_group else None)
     if not any(w.source.startswith("tep-mode") for w in windows):
-        print("corpus_baseline: no TEP windows (run python -m bench corpus first)")
+        print("corpus_baseline: no TEP windows (run python -m lab corpus first)")
     verdicts = {}
     t1 = time.process_time()
     for w in windows:

@@ -30,12 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from bench import real_data
+from lab.sources import records
+from lab.sources.realistic import sim_cases
 from stiction import Assessment, analyze
 from stiction.paper import reproduce
 from stiction.scenarios import scenario, simulate
 
-CASES = real_data.SHARED / "cases"
+CASES = records.SHARED / "cases"
 
 
 def _record(a: Assessment) -> dict[str, Any]:
@@ -43,9 +44,9 @@ def _record(a: Assessment) -> dict[str, Any]:
 
 
 def _shared() -> Iterator[tuple[str, str, dict[str, Any]]]:
-    for c in real_data.plant_cases():
+    for c in records.plant_cases():
         yield "plant", c.name, _record(analyze(c.op, c.pv, ts=c.ts))
-    for c in real_data.tep_cases():
+    for c in records.tep_cases():
         yield "tep", c.name, _record(analyze(c.op, c.pv, ts=c.ts))
     for path in sorted(CASES.glob("*.csv")):
         with path.open() as fh:
@@ -57,7 +58,7 @@ def _shared() -> Iterator[tuple[str, str, dict[str, Any]]]:
 
 
 def _sims() -> Iterator[tuple[str, str, dict[str, Any]]]:
-    for c in real_data.sim_cases(14):
+    for c in sim_cases(14):
         yield "sims", f"{c.name}/unknown", _record(analyze(c.op, c.pv, ts=c.ts))
         yield "sims", f"{c.name}/given", _record(analyze(c.op, c.pv, ts=c.ts,
                                                          process=c.process))
@@ -110,8 +111,8 @@ def compare(results: dict[str, dict[str, Any]], saved: dict[str, dict[str, Any]]
 
 def main(argv: list[str] | None = None) -> None:
     args = argv or []
-    if not real_data.PLANT.exists():
-        print(f"fingerprint: skipped, {real_data.SHARED} not found")
+    if not records.PLANT.exists():
+        print(f"fingerprint: skipped, {records.SHARED} not found")
         return
     t0 = time.perf_counter()
     results = fingerprint()

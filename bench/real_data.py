@@ -25,123 +25,37 @@ samples, and SI >= 0.6. vote: the nine tests' weighted vote (stiction.diagnosis.
 stiction at >= 0.7), the decision before the learned one (issue 24), on the same evidence
 ``analyze`` gathered: the "before" beside ``analyze``'s "after".
 
-**corpus**: the development corpus (``python -m bench corpus``) per source and cause, the vote
-beside the learned decision, from the features ``python -m bench.train`` cached (skipped
+**corpus**: the development corpus (``python -m lab corpus``) per source and cause, the vote
+beside the learned decision, from the features ``python -m lab train`` cached (skipped
 until it has run). The learned decision was fitted on this corpus, so these are in-sample;
-the held-out figures are ``python -m bench.train``'s.
+the held-out figures are ``python -m lab train``'s.
 
 ``python -m bench real_data`` runs all three; ``REAL_DATA_SIMS=N`` sets the simulated
-records per cause and seed (default 14, three seeds). Simulated records are cached in
-``bench/.cache`` keyed by the generator's source.
+records per cause and seed (default 14, three seeds). The records are read and the
+simulations drawn (and cached, keyed by the generator's source) by lab/sources/.
 """
 
 from __future__ import annotations
 
 import collections
-import csv
 import dataclasses
-import hashlib
-import inspect
 import os
-import pickle
 import time
 from collections.abc import Callable, Iterable
-from pathlib import Path
 
 import numpy as np
 
+from lab.sources.realistic import AMBIGUOUS, SIM_SEEDS, sim_cases
+from lab.sources.records import PLANT, SHARED, TEP, Case, plant_cases, tep_cases
 from stiction import Assessment, Verdict, analyze
 from stiction.detectors.stiction_index import STICTION_SI, stiction_index
 from stiction.diagnosis import combine
 from stiction.diagnosis.evidence import TESTS
 from stiction.diagnosis.model import load as load_model
-from stiction.scenarios import realistic
 from stiction.signal.oscillation import MIN_PERIOD, detect_oscillation
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-PLANT = SHARED / "plant-stictiongpt"
-TEP = SHARED / "tep-sticky-valves"
-CACHE = Path(__file__).resolve().parent / ".cache"
-SIM_SEEDS = (1, 2, 3)
-AMBIGUOUS = ("ramp-load",)  # simulated causes shown apart, out of the totals
 CALLS = (Verdict.STICTION, "valve_not_responding")
 UNDECIDED = (Verdict.UNDETERMINED, Verdict.BAD_DATA)
-
-
-@dataclasses.dataclass(frozen=True)
-class Case:
-    """One record to score: ``group`` is what a score is grouped by (tag, run, loop)."""
-
-    dataset: str
-    name: str
-    group: str
-    sticky: bool
-    cause: str
-    op: np.ndarray
-    pv: np.ndarray
-    ts: float
-    process: str = "self-regulating"
-    note: str = ""
-
-
-def _csv(path: Path) -> dict[str, np.ndarray]:
-    data = np.genfromtxt(path, delimiter=",", names=True)
-    return {n: np.asarray(data[n], dtype=np.float64) for n in data.dtype.names or ()}
-
-
-def plant_cases() -> list[Case]:
-    with (PLANT / "labels.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    out = []
-    for r in rows:
-        d = _csv(PLANT / f"{r['loop']}.csv")
-        out.append(Case("plant", r["loop"], r["tag"], r["label"] == "stiction",
-                        r["loop_type"], d["op"], d["pv"], float(np.median(np.diff(d["t"])))))
-    return out
-
-
-def _tep_cause(cause: str, sticky: bool) -> str:
-    if sticky:
-        return "sticky (IDV 14)" if "14" in cause else "sticky (IDV 15)"
-    if cause.startswith("propagated"):
-        return "propagated"
-    if cause.startswith("none"):
-        return "normal"
-    return "disturbance"
-
-
-def tep_cases() -> list[Case]:
-    out = []
-    for sub in ("braatz", "ricker"):
-        with (TEP / sub / "labels.csv").open() as fh:
-            for r in csv.DictReader(fh):
-                d = _csv(TEP / sub / f"{r['name']}.csv")
-                sticky = r["label"] == "stiction"
-                out.append(Case("tep", f"{sub}/{r['name']}", f"{sub}/{r['name']}", sticky,
-                                _tep_cause(r["cause"], sticky), d["op"], d["pv"],
-                                float(r["ts"])))
-    return out
-
-
-def sim_cases(per_seed: int) -> list[Case]:
-    src = inspect.getsource(realistic) + inspect.getsource(realistic.LoopBank) + \
-        inspect.getsource(Case)
-    key = hashlib.sha256(f"{src}{per_seed}{SIM_SEEDS}".encode()).hexdigest()[:16]
-    path = CACHE / f"realistic-{key}.pickle"
-    if path.exists():
-        with path.open("rb") as fh:
-            cached: list[Case] = pickle.load(fh)
-        return cached
-    out = []
-    for seed in SIM_SEEDS:
-        for cause in realistic.CAUSES:
-            for r in realistic.realistic_loops(cause, per_seed, seed=seed):
-                out.append(Case("sim", f"{cause}-{seed}-{r.index}", f"{cause}-{seed}-{r.index}",
-                                r.sticky, cause, r.op, r.pv, r.ts, r.process, r.description))
-    CACHE.mkdir(exist_ok=True)
-    with path.open("wb") as fh:
-        pickle.dump(out, fh)
-    return out
 
 
 # ----------------------------------------------------------------------------- detectors
@@ -360,22 +274,23 @@ def main() -> None:
 
 def corpus() -> None:
     """Per source and cause: the vote beside the learned decision (the module doc)."""
-    from bench import train  # noqa: PLC0415  (needs the built corpus and its cached features)
+    from lab.features.rows import cached_rows  # noqa: PLC0415  (the built corpus's rows)
+    from lab.training.report import vote  # noqa: PLC0415
 
-    rows = train.cached_rows()
+    rows = cached_rows()
     if rows is None:
-        print("== corpus: skipped (run python -m bench corpus, then python -m bench.train) ==")
+        print("== corpus: skipped (run python -m lab corpus, then python -m lab train) ==")
         return
     model = load_model()
     print(f"== corpus ({len(rows)} windows; in-sample for the learned decision, held out: "
-          "python -m bench.train) ==")
+          "python -m lab train) ==")
     print(f"  {'source':<12} {'cause':<14} {'n':>6}  called stiction: vote -> analyze")
     table: dict[tuple[str, str], list[int]] = collections.defaultdict(lambda: [0, 0, 0])
     for r in rows:
         cell = table[(r.source, r.cause_class)]
         cell[0] += 1
         if r.x is not None:
-            cell[1] += train.vote(r.x) >= combine.STICTION_CONFIDENCE
+            cell[1] += vote(r.x) >= combine.STICTION_CONFIDENCE
             cell[2] += model.probability(r.x) >= model.stiction_at
     for (source, cause), (n, before, after) in sorted(table.items()):
         print(f"  {source:<12} {cause:<14} {n:>6}  {before:>5} ({before / n:4.0%}) -> "

@@ -33,6 +33,9 @@
         prefix: U2.             # optional: loop names are prefix + the plant's loop names
         address: 100            # optional; default: right after the previous loop
         window_s: 3600          # optional, only for --write-gateway-config
+        unit: U2                # optional, only for --write-gateway-config: the loops'
+                                # plant unit (default: the prefix without its last '.',
+                                # else the plant's name); the plant view keeps units apart
         duration_s: 14400       # optional: process s simulated at start, then replayed
 
 It is read with the gateway's one validator (:mod:`gateway.config.schema`).
@@ -74,6 +77,7 @@ class SimLoop:
     result_address: int | None = None
     noise: float = 0.0
     address: int = 0
+    unit: str = ""  # its plant unit in the gateway config (a plant's loops: the plant's)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,11 +227,13 @@ def _parse_plants(top: Section, names: set[str], used: list[tuple[int, str]],
         prefix = sec.opt("prefix", s.string, "")
         address = sec.opt("address", s.integer(0, 65536 - REGISTERS_PER_LOOP), next_address)
         window = sec.opt("window_s", s.number(positive=True), None)
+        unit = sec.opt("unit", s.string, None)
         duration = sec.opt("duration_s", s.number(positive=True), DEFAULT_DURATION_S)
         sec.done()
-        if MISSING in (plant, prefix, address, window, duration):
+        if MISSING in (plant, prefix, address, window, duration, unit):
             continue
-        p = SimPlant(NAMED_PLANTS[plant], prefix, address, window, duration)
+        unit = unit or prefix.rstrip("._-/: ") or plant
+        p = SimPlant(NAMED_PLANTS[plant], prefix, address, window, duration, unit)
         for k, lp in enumerate(p.loops):
             name = p.name(lp)
             if name in names:

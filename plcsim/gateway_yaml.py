@@ -74,6 +74,7 @@ def gateway_config(cfg: SimConfig, *, port: int | None = None, host: str | None 
             "window_s": lp.window_s if lp.window_s is not None else 3600.0,
             "result_address": result_address,
             **({"result_unit_id": unit} if unit != result_unit_id else {}),
+            **({"unit": lp.unit} if lp.unit else {}),
         })
     sim_host, sim_port = cfg.listen
     out = {
@@ -121,7 +122,7 @@ def _plant_loops(cfg: SimConfig) -> list[SimLoop]:
             sc = Scenario(p.name(lp), f"loop of plant {p.scenario.name}", kc=lp.kc, ti=lp.ti,
                           kp=lp.kp, tau=lp.tau, theta=lp.theta, integrating=lp.integrating)
             out.append(SimLoop(p.name(lp), sc, window_s=p.window_s,
-                               address=p.address + REGISTERS_PER_LOOP * k))
+                               address=p.address + REGISTERS_PER_LOOP * k, unit=p.unit))
     return out
 
 

@@ -34,6 +34,7 @@ class SimPlant:
     address: int = 0
     window_s: float | None = None
     duration_s: float = DEFAULT_DURATION_S
+    unit: str = ""  # the plant unit written for its loops (--write-gateway-config)
 
     @property
     def loops(self) -> tuple[PlantLoop, ...]:

@@ -1,5 +1,5 @@
-"""The rooms of gateway/ and stiction/ and what each may import (docs/architecture.md), read
-from the code.
+"""The rooms of gateway/, stiction/ and lab/ and what each may import (docs/architecture.md),
+read from the code.
 
 Every ``import`` statement (top level, inside functions, under TYPE_CHECKING) is resolved to
 the module it names. From the bottom up:
@@ -31,21 +31,39 @@ valvetest   signal                            (step tests in manual: never the d
 cli         all of the above
 ==========  ===============================================================================
 
+lab/ (the corpus and the training), from the bottom up (``_types``, ``_cache`` its ground):
+
+==========  ===============================================================================
+sources     the ground                        (TEP runs, the realistic generator, the
+                                               records, the named scenarios)
+windows     sources                           (runs cut into views)
+labels      windows, sources                  (each window's cause class; the corpus)
+features    labels and everything below it    (the rows the decision reads)
+training    features and everything below it  (the fit, the folds, the thresholds, reports)
+export      training and everything below it  (model.json, weights.py)
+commands    all of the above                  (python -m lab NAME; __main__ runs them)
+==========  ===============================================================================
+
 ``stiction`` never imports ``gateway`` or ``plcsim``; ``plcsim`` uses the gateway's config
-schema, errors, wire and runtime only; nothing in ``gateway`` imports ``plcsim``.
+schema, errors, wire and runtime only; nothing in ``gateway`` imports ``plcsim``. ``lab``
+and ``bench`` are development tooling: nothing of stiction, gateway or plcsim imports them;
+``lab`` builds on ``stiction`` alone; ``bench`` may use everything. Within a room, and
+anywhere in the five packages, no modules import each other in a circle (not even for a
+type under TYPE_CHECKING).
 The rules are checked on a few wrong modules first, so the test is seen to fail.
 """
 
 from __future__ import annotations
 
 import ast
+import functools
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("gateway", "plcsim", "stiction")
+PACKAGES = ("gateway", "plcsim", "stiction", "lab", "bench")
 
 BELOW: dict[str, set[str]] = {
     "errors": set(),
@@ -76,6 +94,13 @@ STICTION_BELOW: dict[str, set[str]] = {
 STICTION_BELOW["cli"] = set(STICTION_BELOW) - {"cli"}
 STICTION_BELOW[""] = STICTION_BELOW["cli"]  # stiction/__init__: the public API
 PLUGIN_ROOMS = ("inputs", "outputs")  # one folder per protocol / sink, plus base.py
+LAB_GROUND = {"_types", "_cache"}
+LAB_ROOMS = ("sources", "windows", "labels", "features", "training", "export", "commands",
+             "__main__")
+MAY_IMPORT = {"stiction": {"stiction"}, "gateway": {"gateway", "stiction"},
+              "plcsim": {"plcsim", "gateway", "stiction"}, "lab": {"lab", "stiction"},
+              "bench": set(PACKAGES)}
+"""The packages each package may import, where lab or bench is on either side."""
 
 
 PACKAGE_FACES = {".".join(p.relative_to(ROOT).parent.parts)
@@ -94,10 +119,17 @@ def sources() -> dict[str, str]:
     return out
 
 
+@functools.cache
+def _import_nodes(text: str) -> tuple[ast.Import | ast.ImportFrom, ...]:
+    """The import statements of ``text``, wherever they stand (each text parsed once: the
+    rules are checked on the whole tree many times)."""
+    return tuple(n for n in ast.walk(ast.parse(text)) if isinstance(n, ast.Import | ast.ImportFrom))
+
+
 def imports(module: str, text: str, known: set[str]) -> Iterator[tuple[str, int]]:
     """(imported module, line) for each import of ``module``, wherever it stands."""
     package = module if module in PACKAGE_FACES else module.rpartition(".")[0]
-    for node in ast.walk(ast.parse(text)):
+    for node in _import_nodes(text):
         if isinstance(node, ast.Import):
             for alias in node.names:
                 yield alias.name, node.lineno
@@ -147,6 +179,32 @@ def stiction_violation(target: str, here: tuple[str, str], there: tuple[str, str
     return None
 
 
+def lab_room(module: str) -> str:
+    """``lab.labels.corpus`` -> "labels"; ``lab`` -> ""."""
+    return [*module.split("."), ""][1]
+
+
+def lab_violation(here: str, there: str) -> str | None:
+    """Why lab's room ``here`` may not import its room ``there`` (``""``: lab/__init__), or
+    None: a room imports its own modules, the ground and the rooms below it."""
+    below = LAB_ROOMS[:LAB_ROOMS.index(here)] if here in LAB_ROOMS else ()
+    if there in (here, "", *below) or (there in LAB_GROUND and here not in LAB_GROUND):
+        return None
+    return f"lab/{here or '__init__'} may not import lab/{there} (a higher room or a sibling)"
+
+
+def package_violation(module: str, target: str) -> str | None:
+    """Why ``module`` may not import ``target`` where lab or bench is on either side."""
+    top, other = module.partition(".")[0], target.partition(".")[0]
+    if other not in MAY_IMPORT[top]:
+        why = "development tooling, never the product's" if other in ("lab", "bench") \
+            else "the lab builds on stiction alone"
+        return f"{top} never imports {other} ({why})"
+    if top == other == "lab":
+        return lab_violation(lab_room(module), lab_room(target))
+    return None
+
+
 def violations(modules: Mapping[str, str]) -> list[str]:
     known = set(modules)
     found = []
@@ -157,7 +215,11 @@ def violations(modules: Mapping[str, str]) -> list[str]:
             if there not in (*PACKAGES, *BELOW) or target.split(".")[0] not in PACKAGES:
                 continue  # the standard library or a third-party package
             where = f"{module}:{line} imports {target}"
-            if here == "stiction":
+            if {"lab", "bench"} & {module.partition(".")[0], target.partition(".")[0]}:
+                why = package_violation(module, target)
+                if why:
+                    found.append(f"{where}: {why}")
+            elif here == "stiction":
                 why = stiction_violation(target, stiction_room(module), stiction_room(target))
                 if why:
                     found.append(f"{where}: {why}")
@@ -178,13 +240,59 @@ def violations(modules: Mapping[str, str]) -> list[str]:
     return found
 
 
+def circles(modules: Mapping[str, str]) -> list[list[str]]:
+    """Sets of modules that import each other in a circle (Tarjan's strongly connected
+    components of the import graph, iteratively), each sorted."""
+    known = set(modules)
+    graph = {m: sorted({t for t, _ in imports(m, text, known) if t in known and t != m})
+             for m, text in modules.items()}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    found = []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, 0)]
+        while work:
+            v, k = work.pop()
+            if k == 0:
+                index[v] = low[v] = len(index)
+                stack.append(v)
+                on.add(v)
+            if k < len(graph[v]):
+                work.append((v, k + 1))
+                w = graph[v][k]
+                if w not in index:
+                    work.append((w, 0))
+                elif w in on:
+                    low[v] = min(low[v], index[w])
+                continue
+            if work:
+                parent = work[-1][0]
+                low[parent] = min(low[parent], low[v])
+            if low[v] == index[v]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on.discard(w)
+                    comp.append(w)
+                    if w == v:
+                        break
+                if len(comp) > 1:
+                    found.append(sorted(comp))
+    return found
+
+
 SOURCES = sources()
 
 
 def test_the_rooms_import_only_downward() -> None:
     modules = dict(SOURCES)
     assert {"gateway.core.points", "gateway.inputs.memory", "plcsim.sim",
-            "stiction.detectors.registry", "stiction.diagnosis.evidence"} <= set(modules)
+            "stiction.detectors.registry", "stiction.diagnosis.evidence", "lab.sources.tep",
+            "lab.labels.corpus", "lab.training.fit", "lab.export.model"} <= set(modules)
     assert violations(modules) == []
 
 
@@ -230,6 +338,26 @@ def test_the_rooms_import_only_downward() -> None:
     ("stiction.valvetest.response", "from ..scenarios.steptest import simulate_step_test",
      "valvetest may not import scenarios"),
     ("plcsim.sim", "from gateway.inputs.modbus import ModbusInput", "plcsim uses"),
+    ("stiction.diagnosis.model", "from lab.export.model import MODEL",
+     "stiction never imports lab"),
+    ("gateway.runtime.scheduler", "def f():\n    import lab.features.rows\n",
+     "gateway never imports lab"),
+    ("plcsim.sim", "from bench._net import free_port", "plcsim never imports bench"),
+    ("lab.labels.corpus", "from bench import real_data", "lab never imports bench"),
+    ("lab.training.fit", "from gateway.core.store import ResultStore",
+     "lab never imports gateway"),
+    ("lab._types", "from .sources.tep import LOOPS", "lab/_types may not import lab/sources"),
+    ("lab._cache", "from ._types import Window", "lab/_cache may not import lab/_types"),
+    ("lab.sources.records", "from ..labels.rules import MIN_SLIPS",
+     "lab/sources may not import lab/labels"),
+    ("lab.windows.tep", "from ..features.rows import Row",
+     "lab/windows may not import lab/features"),
+    ("lab.labels.rules", "from ..training import fit", "lab/labels may not import lab/training"),
+    ("lab.features.rows", "from lab.export.model import MODEL",
+     "lab/features may not import lab/export"),
+    ("lab.training.fit", "if TYPE_CHECKING:\n    from ..export.model import BY\n",
+     "lab/training may not import lab/export"),
+    ("lab.export.model", "from .. import commands", "lab/export may not import lab/commands"),
 ])
 def test_a_module_importing_upward_is_caught(module: str, text: str, why: str) -> None:
     modules = dict(SOURCES)
@@ -246,4 +374,34 @@ def test_lazy_and_lower_imports_are_allowed() -> None:
     modules["gateway.inputs.modbus.client"] = ("from ..base import Source\n"
                                                 "from ...core import points\n")
     modules["plcsim.demo"] = "from gateway.runtime.gateway import Gateway\n"
+    modules["lab.export.model"] = ("from ..training.fit import Fitted\nfrom .._types import "
+                                   "Window\nfrom ..sources import tep\nimport stiction\n")
+    modules["lab.labels.corpus"] = "from .tep import tep_records\nfrom .. import _cache\n"
+    modules["bench.real_data"] = ("from lab.sources.records import Case\n"
+                                  "from gateway.config import Config\nimport plcsim\n")
     assert violations(modules) == []
+
+
+def test_no_modules_import_each_other_in_a_circle() -> None:
+    assert {m.split(".")[0] for m in SOURCES} == set(PACKAGES)
+    assert circles(SOURCES) == []
+
+
+def test_a_circle_is_caught() -> None:
+    modules = dict(SOURCES)
+    modules["gateway.core.points"] += "\nfrom .ticks import TickGrid\n"
+    modules["gateway.core.ticks"] += "\nif TYPE_CHECKING:\n    from .points import Quality\n"
+    assert ["gateway.core.points", "gateway.core.ticks"] in circles(modules)
+
+
+@pytest.mark.parametrize(("first", "second"), [
+    # the benchmarks' old circle ran through an import inside a function
+    ("bench.real_data", "def corpus():\n    from bench import corpus_baseline\n"),
+    ("lab.labels.tep", "from .corpus import load_windows\n"),  # one room, still a circle
+])
+def test_a_circle_in_the_development_packages_is_caught(first: str, second: str) -> None:
+    modules = dict(SOURCES)
+    back = {"bench.real_data": "bench.corpus_baseline", "lab.labels.tep": "lab.labels.corpus"}
+    modules[first] += "\n" + second
+    modules["bench.corpus_baseline"] += "\nfrom bench.real_data import si_only\n"
+    assert sorted([first, back[first]]) in circles(modules)

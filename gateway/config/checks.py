@@ -2,10 +2,12 @@
 
 Each check adds one problem line naming the section and the key:
 
-* **memory**: the loop windows, twice (the state file copies them when it writes), must fit
-  ``gateway.memory_limit_mb`` (default: half of this machine's memory, or of the service's
-  memory limit if lower). ``window_s: 1e9`` or ``poll_interval_s: 1e-6`` would otherwise end
-  in MemoryError at start, or in the machine swapping.
+* **memory**: the loop windows, twice (the state file copies them when it writes), and the
+  plant step (:func:`plant_bytes`) must fit ``gateway.memory_limit_mb`` (default: half of
+  this machine's memory, or of the service's memory limit if lower). ``window_s: 1e9`` or
+  ``poll_interval_s: 1e-6`` would otherwise end in MemoryError at start, or in the machine
+  swapping; so would 2,000 loops of 65,536-sample windows with ``plant.max_samples:
+  65536`` (about 10 GiB in the plant step).
 * **state file**: ``gateway.state_file`` must not be the config file (the gateway would
   overwrite it) nor an existing file that is not a state file (anything but an empty file
   or a zip archive: a state file that cannot be read is set aside, a stranger's file must
@@ -21,6 +23,7 @@ Each check adds one problem line naming the section and the key:
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import resource
 import socket
@@ -33,12 +36,19 @@ from .schema import Problems
 
 __all__ = ["FDS_BASE", "FDS_PER_DEVICE", "FDS_PER_WORKER", "bind_check", "check_config",
            "default_memory_limit_mb", "fds_needed", "identification", "machine_memory_bytes",
-           "window_bytes"]
+           "plant_bytes", "window_bytes"]
 
 FDS_BASE = 64  # interpreter, log, state file, the workers' queues, sd_notify
 FDS_PER_DEVICE = 2  # a connection (OPC UA: and the endpoint probe)
 FDS_PER_WORKER = 2  # a process sentinel and its share of the pool's pipes
 WILDCARDS = frozenset({"", "0.0.0.0", "::", "*"})
+PLANT_BYTES_PER_SAMPLE = 112
+"""Bytes per loop and averaged sample the plant step holds at its peak: the job and its
+pickle in the gateway (float32 OP and PV, 16 in all) and, in the worker, the job again and
+the analysis' matrices (float64 signals, spectra and their sums: 45-83 measured from 2,000
+to 3,300,000 loop-samples; tests/config/test_plant_memory.py fails if this is too low)."""
+PLANT_BYTES_FIXED = 8 * 2**20
+"""Bytes the plant step of one time base holds whatever its size (the groups' evidence)."""
 MAX_IDENTIFICATION_CHARS = 30  # 7 objects fit one Modbus answer (253 bytes)
 
 
@@ -79,6 +89,28 @@ def window_bytes(config: Config) -> int:
     return total + sum(8 * n for _dev, n in banks)
 
 
+def plant_bytes(config: Config) -> tuple[int, tuple[int, int] | None]:
+    """Bytes the plant step holds at its peak, every time base's job at once (each loop's
+    window averaged down to at most ``plant.max_samples``), and the largest job's (loops,
+    samples); (0, None) with ``plant.enabled: false``."""
+    if not config.plant.enabled:
+        return 0, None
+    bases: dict[tuple[float, int], int] = {}
+    for lp in config.loops:
+        key = (config.device(lp.device).poll_interval_s, config.window_samples(lp))
+        bases[key] = bases.get(key, 0) + 1
+    total = 0
+    largest: tuple[int, int] | None = None
+    for (_ts, length), loops in bases.items():
+        if loops < 2:
+            continue
+        width = length // math.ceil(length / config.plant.max_samples)
+        total += PLANT_BYTES_FIXED + PLANT_BYTES_PER_SAMPLE * loops * width
+        if largest is None or loops * width > largest[0] * largest[1]:
+            largest = (loops, width)
+    return total, largest
+
+
 def _gib(n: float) -> str:
     return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
 
@@ -89,16 +121,27 @@ def _check_memory(problems: Problems, config: Config) -> None:
     if limit_mb is None:
         limit_mb, origin = default_memory_limit_mb(), "half this machine's memory"
     budget = limit_mb * 2**20
-    need = 2 * window_bytes(config)
-    if need <= budget or not config.loops:
+    windows = 2 * window_bytes(config)
+    plant, largest = plant_bytes(config)
+    if windows + plant <= budget or not config.loops:
+        return
+    shown = f"{limit_mb:,.0f}" if limit_mb >= 10 else f"{limit_mb:g}"
+    budget_text = f"the memory budget of {shown} MiB ({origin})"
+    if windows <= budget and largest is not None:
+        loops, width = largest
+        problems.add("plant", "max_samples",
+                     f"the plant step needs {_gib(plant)} (its largest time base: {loops:,} "
+                     f"loops x {width:,} samples); with the loop windows ({_gib(windows)}) "
+                     f"that is {_gib(plant + windows)}, over {budget_text}: lower "
+                     "plant.max_samples "
+                     f"(now {config.plant.max_samples:,}), set plant.enabled: false or raise "
+                     "gateway.memory_limit_mb")
         return
     big = max(config.loops, key=config.window_samples)
     n = config.window_samples(big)
     dev = config.device(big.device)
     what = (f"window_s {big.window_s:g} / poll_interval_s {dev.poll_interval_s:g} of device "
             f"{dev.name}")
-    shown = f"{limit_mb:,.0f}" if limit_mb >= 10 else f"{limit_mb:g}"
-    budget_text = f"the memory budget of {shown} MiB ({origin})"
     if 2 * 9 * n > budget:
         problems.add(f"loop {big.name}", "window_s",
                      f"its window of {n:,} samples ({what}) needs {_gib(2 * 9 * n)} with the "
@@ -106,7 +149,7 @@ def _check_memory(problems: Problems, config: Config) -> None:
                      "poll_interval_s")
         return
     problems.add("gateway", "memory_limit_mb",
-                 f"the loop windows need {_gib(need)} with the state file's copy, over "
+                 f"the loop windows need {_gib(windows)} with the state file's copy, over "
                  f"{budget_text}; the largest is loop {big.name}'s, {n:,} samples ({what}): "
                  "shorten window_s, lengthen poll_interval_s or raise "
                  "gateway.memory_limit_mb")

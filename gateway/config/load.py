@@ -176,6 +176,7 @@ METRICS_KEYS: dict[str, Callable[[Any], Any]] = {
 PLANT_KEYS: dict[str, Callable[[Any], Any]] = {
     "enabled": s.boolean,
     "max_samples": s.integer(64, 65536),
+    "hold_rounds": s.integer(1, 1000),
 }
 HYSTERESIS_KEYS: dict[str, Callable[[Any], Any]] = {
     "rounds": s.integer(1, 1000),
@@ -260,13 +261,14 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     result_address = sec.opt("result_address", s.integer(0, 65536 - RESULT_BLOCK_SIZE),
                              None)  # None: assigned once every loop is read
     result_unit_id = sec.opt("result_unit_id", s.integer(1, MAX_RESULT_UNIT_ID), default_unit)
+    unit = sec.opt("unit", _unit, "")
     if device is not None and window is not MISSING \
             and window / device.poll_interval_s < MIN_WINDOW_SAMPLES:
         sec.error("window_s", f"must hold at least {MIN_WINDOW_SAMPLES} samples of device "
                   f"{device.name} (poll_interval_s {device.poll_interval_s:g})")
         window = MISSING
     values = (name, device_name, process, kp, delay, window, op_range, result_address,
-              result_unit_id)
+              result_unit_id, unit)
     if MISSING in values or device is None or None in points.values():
         return None
     op, pv = points["op"], points["pv"]
@@ -275,7 +277,19 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     return LoopConfig(name=name, device=device_name, op=op, pv=pv,
                       result_address=result_address, process=process, kp=kp,
                       delay_s=delay, window_s=window, op_range=op_range,
-                      result_unit_id=result_unit_id, origin=sec.origin, position=position)
+                      result_unit_id=result_unit_id, origin=sec.origin, unit=unit,
+                      position=position)
+
+
+def _unit(value: Any) -> str:
+    """A plant unit's name: text (a number in a tag list is read as its text), 1-64
+    characters."""
+    if isinstance(value, bool) or not isinstance(value, str | int):
+        raise ValueError("must be a name")
+    text = str(value).strip()
+    if not 1 <= len(text) <= 64:
+        raise ValueError("must be 1-64 characters")
+    return text
 
 
 def _kp(value: Any) -> float | None:

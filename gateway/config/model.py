@@ -85,6 +85,9 @@ class PlantSettings:
     # samples per signal the plant analysis sees: longer windows are averaged down (bounds
     # its memory and time; the per-loop analysis always sees the whole window)
     max_samples: int = 1024
+    # rounds a changed plant view (a group appearing or ending, a source, a loop's role)
+    # must hold before it is published (gateway.core.planthold); 1: at once
+    hold_rounds: int = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,6 +144,9 @@ class LoopConfig:
     # where the loop is listed, for messages about it: "loops.csv: line 4" for a tag-list
     # row, "" for the YAML. Neither in repr nor compared: moving a row keeps its window.
     origin: str = dataclasses.field(default="", repr=False, compare=False)
+    # the plant unit (area) it belongs to: the plant view groups loops of one unit only
+    # ("": no unit). Not in repr: it changes neither the window nor the assessment.
+    unit: str = dataclasses.field(default="", repr=False)
     # the valve's position as its positioner reports it, in OP units (% of span), optional:
     # where it is read, stiction is measured from the valve's travel. Not in repr: a loop
     # without one keeps the signatures (and state files) it had before the key existed;

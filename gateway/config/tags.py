@@ -59,6 +59,8 @@ COLUMNS: dict[str, str] = {
     "window_s": "analysis window, s (default 7200)",
     "result_address": "first result register (default: assigned)",
     "result_unit_id": "result unit id (default: modbus_server.unit_id)",
+    "unit": "plant unit (area): the plant view groups loops of one unit only (default: "
+            "none)",
 }
 """The columns of a tag list and what each holds (empty cell: the key's default)."""
 REQUIRED_COLUMNS = ("name", "device", "op", "pv")

@@ -8,13 +8,21 @@ together by :func:`stiction.plant.analyze_plant` (docs/architecture.md):
    :class:`PlantJob`: samples that are not GOOD as NaN (gaps), aligned at the newest sample
    (devices polled at one interval are read within one interval of each other), averaged
    down to at most ``max_samples`` samples.
-2. :func:`analyze_plant_job` is the worker's entry (picklable in, picklable out).
-3. :class:`PlantTracker` numbers the groups of all jobs for the outputs: a group keeps its
-   number from round to round while it shares loops with the one before (new groups take the
-   lowest free number, so numbers stay small: the Modbus register holds 1-255), and says
-   when a group appears, changes its source or ends (one log line each).
-4. :class:`PlantView` is what the store holds: the groups and, per loop, its group number
-   and role.
+   Each loop's ``unit`` goes with it: groups form within a unit.
+2. :func:`analyze_plant_job` is the worker's entry (picklable in, picklable out). The job
+   carries the plant view in force for its time base, so a source named before stays while
+   its evidence stands (:mod:`stiction.plant.decide`).
+3. :class:`PlantTracker` holds each time base's view in force: a new view whose story
+   differs (a group appears or ends, a group's source or a loop's role changes) is put in
+   force only once it has held for ``hold_rounds`` rounds in a row
+   (:mod:`.planthold`); then it numbers the groups of all jobs for the outputs: a group
+   keeps its number from round to round while it shares loops with the one before (new
+   groups take the lowest free number, so numbers stay small: the Modbus register holds
+   1-255), says when a group appears, changes its source or ends (one log line each) and
+   counts the changes published and the rounds a change was held back.
+What the store holds, :class:`.plantview.PlantView` (the groups and, per loop, its group
+number and role), is a module of its own: the store imports it, this module imports the
+windows, and the windows the store, so nothing imports in a circle.
 """
 
 from __future__ import annotations
@@ -29,20 +37,16 @@ from numpy.typing import NDArray
 
 from stiction import Assessment
 
+from .planthold import Hold
+from .plantview import CHANGES, MAX_GROUP_NUMBER, PlantGroup, PlantView
 from .points import Quality
+from .windows import LoopGroup
 
 if TYPE_CHECKING:  # the analysis only in the worker (it brings in scipy.signal, ~0.5 s)
     from stiction.plant import PlantAssessment
 
-if TYPE_CHECKING:  # windows -> store -> plant: the type only
-    from .windows import LoopGroup
+__all__ = ["CHUNK", "PlantJob", "PlantTracker", "analyze_plant_job", "plant_jobs"]
 
-__all__ = ["CHUNK", "MAX_GROUP_NUMBER", "ROLE_CODES", "PlantGroup", "PlantJob", "PlantTracker",
-           "PlantView", "analyze_plant_job", "plant_jobs"]
-
-ROLE_CODES = {"": 0, "source": 1, "follower": 2}
-"""A loop's role as a number (Modbus register +18, high byte): 0 in no group."""
-MAX_GROUP_NUMBER = 255  # the register's low byte
 CHUNK = 512  # loops copied out of a bank at once (bounds the copies' memory)
 
 
@@ -58,22 +62,34 @@ class PlantJob:
     ts: float
     assessments: Mapping[str, Assessment]
     processes: Mapping[str, str]
+    units: Mapping[str, str] = dataclasses.field(default_factory=dict)  # loop -> its unit
+    key: tuple[float, int] = (0.0, 0)  # the time base: poll interval, window length
+    previous: PlantAssessment | None = None  # the view in force for this time base
+    newest: float | None = None  # process time of the newest sample in the windows
 
 
 def _averaged(x: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
     """Rows of ``x`` averaged over blocks of ``factor`` samples (the oldest samples that
-    fill no whole block are dropped; a block with a gap is a gap)."""
+    fill no whole block are dropped): the mean of a block's good samples, a gap (NaN) when
+    fewer than half of them are good (a lone missed poll does not blank its block)."""
     if factor == 1:
         return x
     n = x.shape[1] // factor * factor
-    return np.asarray(x[:, x.shape[1] - n:].reshape(x.shape[0], -1, factor).mean(axis=2),
-                      dtype=np.float32)
+    blocks = x[:, x.shape[1] - n:].reshape(x.shape[0], -1, factor)
+    good = np.isfinite(blocks)
+    count = good.sum(axis=2)
+    total = np.where(good, blocks, 0.0).sum(axis=2, dtype=np.float64)
+    mean = np.divide(total, count, out=np.full(count.shape, np.nan), where=2 * count >= factor)
+    return np.asarray(mean, dtype=np.float32)
 
 
 def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment], *,
-               max_samples: int) -> list[PlantJob]:
+               max_samples: int,
+               previous: Mapping[tuple[float, int], PlantAssessment] | None = None
+               ) -> list[PlantJob]:
     """One job per time base (poll interval, window length) with at least two loops
-    assessed (``assessments``: store row -> this round's assessment), in that order."""
+    assessed (``assessments``: store row -> this round's assessment), in that order;
+    ``previous``: the view in force per time base."""
     by_base: dict[tuple[float, int], list[LoopGroup]] = {}
     for g in groups:
         if g.bank.count > 0 and any(int(r) in assessments for r in g.rows):
@@ -88,6 +104,9 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
         ops: list[NDArray[np.float32]] = []
         pvs: list[NDArray[np.float32]] = []
         processes: dict[str, str] = {}
+        units: dict[str, str] = {}
+        newest = max((float(g.bank.t[(g.bank.head - 1) % g.bank.size]) for g in members),
+                     default=None)
         for g in members:
             cols = [c for c in range(len(g.configs)) if int(g.rows[c]) in assessments]
             for lo in range(0, len(cols), CHUNK):
@@ -109,6 +128,8 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
                     rows.append(int(g.rows[c]))
                     names.append(cfg.name)
                     processes[cfg.name] = cfg.process
+                    if cfg.unit:
+                        units[cfg.name] = cfg.unit
         if len(rows) < 2:
             continue
         jobs.append(PlantJob(
@@ -116,7 +137,7 @@ def plant_jobs(groups: Sequence[LoopGroup], assessments: Mapping[int, Assessment
             np.concatenate(ops) if ops else np.zeros((0, width), np.float32),
             np.concatenate(pvs) if pvs else np.zeros((0, width), np.float32),
             ts * factor, {nm: assessments[r] for r, nm in zip(rows, names, strict=True)},
-            processes))
+            processes, units, (ts, length), (previous or {}).get((ts, length)), newest))
     return jobs
 
 
@@ -126,65 +147,56 @@ def analyze_plant_job(job: PlantJob) -> PlantAssessment:
 
     loops = {name: (job.op[k], job.pv[k]) for k, name in enumerate(job.names)}
     return analyze_plant(loops, ts=job.ts, assessments=job.assessments,
-                         processes=job.processes)
-
-
-@dataclasses.dataclass(frozen=True)
-class PlantGroup:
-    """One group as the outputs see it: its ``number`` (stable while it lasts), period,
-    source loop (None: no loop analysed is the source) and member loops."""
-
-    number: int
-    period_s: float
-    source: str | None
-    loops: tuple[str, ...]
-    reason: str = ""
-
-
-@dataclasses.dataclass(frozen=True)
-class PlantView:
-    """The groups and, per loop in one, its (group number, role)."""
-
-    groups: tuple[PlantGroup, ...] = ()
-    roles: Mapping[str, tuple[int, str]] = dataclasses.field(default_factory=dict)
-
-    def of(self, loop: str) -> tuple[int, str, str | None]:
-        """(group number, role, source) of ``loop``; (0, "", None) when in no group."""
-        number, role = self.roles.get(loop, (0, ""))
-        if number == 0:
-            return 0, "", None
-        return number, role, self.group(number).source
-
-    def group(self, number: int) -> PlantGroup:
-        return self._by_number[number]
-
-    @property
-    def _by_number(self) -> dict[int, PlantGroup]:
-        cache: dict[int, PlantGroup] | None = self.__dict__.get("_cache")
-        if cache is None:
-            cache = {g.number: g for g in self.groups}
-            object.__setattr__(self, "_cache", cache)
-        return cache
+                         processes=job.processes, units=job.units, previous=job.previous)
 
 
 class PlantTracker:
-    """Numbers the groups of successive rounds and tells what changed (see the module)."""
+    """Holds each time base's view in force, numbers the groups of successive rounds, tells
+    and counts what changed (see the module)."""
 
-    def __init__(self) -> None:
+    def __init__(self, hold_rounds: int = 1) -> None:
         self.groups: dict[int, PlantGroup] = {}
+        self.hold = Hold(hold_rounds)
+        self.changes: dict[str, int] = dict.fromkeys(CHANGES, 0)
+        self._roles: Mapping[str, tuple[int, str]] = {}
+
+    @property
+    def in_force(self) -> dict[tuple[float, int], PlantAssessment]:
+        """The plant assessment in force per time base (the jobs' ``previous``)."""
+        return self.hold.in_force  # type: ignore[return-value]
+
+    def round(self, jobs: Sequence[PlantJob], found: Sequence[PlantAssessment]
+              ) -> tuple[dict[int, Assessment], PlantView, list[str]]:
+        """A round's plant step after the workers: each job's new assessment (``found``)
+        settled against the one in force, the in-force ones applied to the job's
+        assessments (store row -> the plant-aware assessment of each loop it changed), the
+        new view and its log lines."""
+        in_force = [self.hold.settle(job.key, pa, newest=job.newest,
+                                     span=job.key[0] * job.key[1])
+                    for job, pa in zip(jobs, found, strict=True)]
+        self.hold.keep_only({job.key for job in jobs})
+        applied: dict[int, Assessment] = {}
+        for job, pa in zip(jobs, in_force, strict=True):
+            changed = pa.apply(job.assessments)
+            for row, name in zip(job.rows, job.names, strict=True):
+                if changed[name] is not job.assessments[name]:
+                    applied[row] = changed[name]
+        view, events = self.update([(pa, job.names) for job, pa in zip(jobs, in_force,
+                                                                       strict=True)])
+        return applied, view, events
 
     def update(self, found: Sequence[tuple[PlantAssessment, Sequence[str]]]
                ) -> tuple[PlantView, list[str]]:
-        """``found``: each job's plant assessment (with the job's loop names). Returns the
-        new view and the log lines of what changed."""
-        new = [(g.period_s, g.source, g.loops, g.reason, pa)
+        """``found``: each job's plant assessment in force (with the job's loop names).
+        Returns the new view and the log lines of what changed."""
+        new = [(g.period_s, g.source, g.loops, g.reason, g.entry)
                for pa, _names in found for g in pa.groups]
         new.sort(key=lambda x: (-len(x[2]), x[0]))  # big groups choose their number first
         free = dict(self.groups)
         out: list[PlantGroup] = []
         events: list[str] = []
         taken: set[int] = set()
-        for period, source, loops, reason, _pa in new:
+        for period, source, loops, reason, entry in new:
             members = set(loops)
             best = max(free.values(), key=lambda g: (len(members & set(g.loops)), -g.number),
                        default=None)
@@ -192,20 +204,23 @@ class PlantTracker:
                 number = best.number
                 del free[number]
                 if best.source != source:
-                    events.append(f"plant group {number}: source {_src(source)} (was "
-                                  f"{_src(best.source)}), period {period:.0f} s, "
+                    self.changes["source"] += 1
+                    events.append(f"plant group {number}: source {_src(source, entry)} (was "
+                                  f"{_src(best.source, best.entry)}), period {period:.0f} s, "
                                   f"{len(loops)} loops")
             else:
                 number = next(k for k in range(1, len(self.groups) + len(new) + 2)
                               if k not in self.groups and k not in taken)
+                self.changes["group_appeared"] += 1
                 events.append(f"plant group {number} appeared: period {period:.0f} s, "
-                              f"source {_src(source)}, {len(loops)} loops: "
+                              f"source {_src(source, entry)}, {len(loops)} loops: "
                               f"{_listed(loops)}")
             taken.add(number)
-            out.append(PlantGroup(number, period, source, tuple(loops), reason))
+            out.append(PlantGroup(number, period, source, tuple(loops), reason, entry))
         for g in sorted(free.values(), key=lambda g: g.number):
+            self.changes["group_ended"] += 1
             events.append(f"plant group {g.number} ended (period {g.period_s:.0f} s, source "
-                          f"{_src(g.source)}, {len(g.loops)} loops)")
+                          f"{_src(g.source, g.entry)}, {len(g.loops)} loops)")
         out = [g for g in out if g.number <= MAX_GROUP_NUMBER]
         out.sort(key=lambda g: g.number)
         self.groups = {g.number: g for g in out}
@@ -219,11 +234,21 @@ class PlantTracker:
                 found_number = by_key.get((sg.period_s, sg.loops))
                 if found_number is not None:
                     roles[name] = (found_number, role.role)
-        return PlantView(tuple(out), roles), events
+        self.changes["role"] += sum(1 for n in set(roles) | set(self._roles)
+                                    if _role(self._roles, n) != _role(roles, n))
+        self._roles = roles
+        self.changes["held"] = self.hold.held
+        return PlantView(tuple(out), roles, dict(self.changes)), events
 
 
-def _src(source: str | None) -> str:
-    return "none among the loops (from outside)" if source is None else source
+def _role(roles: Mapping[str, tuple[int, str]], name: str) -> str:
+    return roles.get(name, (0, ""))[1]
+
+
+def _src(source: str | None, entry: str | None = None) -> str:
+    if source is not None:
+        return source
+    return f"none among the loops (enters by {entry})" if entry else "none among the loops"
 
 
 def _listed(loops: Sequence[str], most: int = 8) -> str:

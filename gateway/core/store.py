@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from stiction import Assessment
 
-from .plant import ROLE_CODES, PlantView
+from .plantview import ROLE_CODES, PlantView
 
 __all__ = ["NO_POSITION", "LoopResult", "ResultStore", "StoreSnapshot", "verdict_name"]
 
@@ -60,7 +60,7 @@ class ResultStore:
         # per loop, a sequence number already published (by an earlier run or config): the
         # next assessment is numbered above it, so the number never goes backwards
         self.seq_floor = np.zeros(n, dtype=np.int64)
-        self.plant = PlantView()  # the plant-wide groups and roles (core/plant.py)
+        self.plant = PlantView()  # the plant-wide groups and roles (core/plantview.py)
         self._subscribers: list[Callable[[int], None]] = []
 
     def subscribe(self, fn: Callable[[int], None]) -> None:

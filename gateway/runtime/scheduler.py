@@ -130,8 +130,8 @@ class AnalysisScheduler:
         self.analyze = analyze
         self.on_duration = on_duration
         self.nice = nice
-        self.plant = plant if plant is not None else PlantSettings()
         self.tracker = PlantTracker()
+        self.plant = plant if plant is not None else PlantSettings()
         # each loop's verdict passes it before it is published (core/hysteresis.py)
         self.verdicts = VerdictFilter(hysteresis, on_count=on_verdict)
         self.rounds = 0
@@ -139,6 +139,16 @@ class AnalysisScheduler:
         self.last_plant_s = 0.0
         self._executor = executor
         self._pool: Executor | None = None
+
+    @property
+    def plant(self) -> PlantSettings:
+        """The plant step's settings (a reload sets them; the tracker holds its view)."""
+        return self._plant
+
+    @plant.setter
+    def plant(self, settings: PlantSettings) -> None:
+        self._plant = settings
+        self.tracker.hold.rounds = settings.hold_rounds
 
     def reconfigure(self, groups: Sequence[LoopGroup], store: ResultStore, config: Config
                     ) -> None:
@@ -254,19 +264,17 @@ class AnalysisScheduler:
         loop = asyncio.get_running_loop()
         try:
             jobs = plant_jobs(groups, {i: a for i, (a, *_rest) in held.items()},
-                              max_samples=self.plant.max_samples)
+                              max_samples=self.plant.max_samples,
+                              previous=self.tracker.in_force)
             outs = await asyncio.gather(*(loop.run_in_executor(self._pool, analyze_plant_job, job)
                                           for job in jobs))
         except Exception:  # a bug in the plant view must not stop the per-loop results
             log.exception("plant analysis failed; per-loop results published as they are")
             return {}
-        applied: dict[int, Assessment] = {}
-        for job, pa in zip(jobs, outs, strict=True):
-            changed = pa.apply(job.assessments)
-            for row, name in zip(job.rows, job.names, strict=True):
-                if changed[name] is not job.assessments[name]:
-                    applied[row] = changed[name]
-        self._set_plant(store, [(pa, job.names) for job, pa in zip(jobs, outs, strict=True)])
+        applied, view, events = self.tracker.round(jobs, outs)
+        for line in events:
+            plant_log.info("%s", line)
+        store.set_plant(view)
         self.last_plant_s = time.perf_counter() - t0
         return applied
 

@@ -1,41 +1,47 @@
-"""`stiction analyze`: one loop's window from a CSV file, its verdict and evidence.
+"""`stiction analyze`: one loop's window from a CSV file, its verdict and evidence; several
+files, or a manifest of them, one row per loop (:mod:`.batch`).
 
-Besides the assessment it prints what weighed most in the decision (the learned decision's
-parts, which are not votes: :mod:`stiction.diagnosis.reasons`) and, where the window cycles
-only in bursts, the stretch that cycles (:mod:`stiction.diagnosis.stretch`) in the file's own
-time, with the ``--from``/``--to`` that analyse it alone."""
+What one file shows is :mod:`.loop`'s (:func:`~.loop.analyze_file`, :func:`~.loop.view`):
+the same dict for ``--json`` of one file and for each object of a batch's array."""
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from .._assessment import Assessment, Verdict
-from ..diagnosis.analyze import Details, analyze_details
+from .._assessment import Assessment
 from ..diagnosis.reasons import WHAT
-from ..diagnosis.stretch import Stretch, regular_stretch
-from . import historian
+from . import batch, historian
 from ._common import Subparsers, UsageError
-from .plot import plot_analysis, window_clock
+from .loop import LoopOptions, analyze_file, bursts, view
+from .plot import plot_analysis
+
+__all__ = ["VOTE_WORDS", "add_analyze", "bursts", "view"]
 
 
 # ------------------------------------------------------------------------------- analyze
 def add_analyze(sub: Subparsers) -> None:
     p = sub.add_parser(
         "analyze",
-        help="assess one CSV window of OP/PV: oscillation, stiction (SI), fd and fs",
+        help="assess CSV windows of OP/PV: oscillation, stiction, fd and fs; one file or a "
+        "whole unit",
         description="Reads OP and PV (and time) columns of a CSV file with a header row, "
         "as a process historian exports it, and prints the assessment: ',' ';' or tab "
         "separated, decimal commas, column names in any case, times in seconds or as "
         "date-times (ISO 8601 and common forms). Empty, 'nan' and text cells ('I/O "
-        "Timeout', 'Shutdown') in OP or PV are missing samples (gaps), counted.",
+        "Timeout', 'Shutdown') in OP or PV are missing samples (gaps), counted. Several "
+        "files, or --manifest: one row per loop (a file that cannot be read is listed with "
+        "its error, the others analysed; exit 0 if any loop was analysed).",
     )
-    p.add_argument("file", type=Path, help="CSV file with a header row")
+    p.add_argument("files", type=Path, nargs="*", metavar="FILE",
+                   help="CSV file with a header row; several: one row per loop")
+    p.add_argument("--manifest", type=Path, default=None, metavar="LIST",
+                   help="a CSV list of the loops: column 'file' (relative to the list's "
+                   "folder) and optionally " + ", ".join(f"'{c}'" for c in batch.COLUMNS[1:])
+                   + "; a cell overrides the option for its file, an empty one falls back "
+                   "to it")
     p.add_argument("--op", default="op", help="OP column (default op; any case)")
     p.add_argument("--pv", default="pv", help="PV column (default pv; any case)")
     g = p.add_mutually_exclusive_group()
@@ -56,57 +62,36 @@ def add_analyze(sub: Subparsers) -> None:
     p.add_argument("--to", dest="stop", default=None, metavar="TIME",
                    help="analyse up to this time (as --from)")
     historian.add_reading_options(p)
-    p.add_argument("--json", action="store_true", help="print the assessment as one JSON object")
-    p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to FILE.png")
+    p.add_argument("--json", action="store_true", help="print the assessment as one JSON "
+                   "object; several files: one JSON array of them, each with its 'file'")
+    p.add_argument("--csv", type=Path, default=None, metavar="OUT",
+                   help="write the assessments to OUT for a spreadsheet: one row per file, "
+                   "the --json keys flattened (size.fd, evidence.kano.vote, ...), an "
+                   "'error' column for a file not analysed")
+    p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to "
+                   "FILE.png; several files: a folder, one PNG per file (its name's stem)")
     p.set_defaults(handler=_cmd_analyze)
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
-    notes = list(table.notes)
-    op_col = historian.column(table, args.op, "--op")
-    pv_col = historian.column(table, args.pv, "--pv")
-    if args.time is not None:
-        t_col: int | None = historian.column(table, args.time, "--time")
-    elif args.ts is None:
-        t_col = historian.time_column(table)
-        if t_col is None:
-            raise UsageError(f"{args.file}: no time column 't' (columns: "
-                             f"{', '.join(table.header)}); give --time COL or --ts S")
-    else:
-        t_col = None
-    if len(table.rows) < 2:
-        raise UsageError(f"{args.file}: {len(table.rows)} samples, need at least 2")
-    op, op_note = historian.numbers(table, op_col)
-    pv, pv_note = historian.numbers(table, pv_col)
-    notes += [n for n in (op_note, pv_note) if n]
-    t = None if t_col is None else historian.times(table, t_col)
-    if t is not None and t_col is not None:
-        ts, op, pv, grid = historian.on_grid(args.file, table.header[t_col], t, op, pv)
-        notes += grid
-    else:
-        ts = args.ts
-    secs = np.arange(len(table.rows)) * ts if t is None else t.seconds
-    clock = FileTime(table, t_col, secs, ts)
-    first, op, pv = clock.cut(args, op, pv)
-    shown_from = window_clock(t, ts, op, pv)  # the plot's axis: the file's time
-    shown_from = dataclasses.replace(shown_from, start=shown_from.start + first * ts)
-    op_range = None if args.op_range is None else tuple(args.op_range)
-    d = analyze_details(op, pv, ts=ts, kp=args.kp, delay=args.delay, process=args.process,
-                        op_range=op_range)
-    a = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
-    stretch = bursts(d)
-    if stretch is not None:
-        a = dataclasses.replace(a, reason=a.reason + stretch.reason(ts))
-    shown = view(a, d, clock.stretch(stretch, first + d.start) if stretch else None)
+    if args.manifest is not None or len(args.files) > 1:
+        return batch.run(args)
+    if not args.files:
+        raise UsageError("analyze: give a CSV file, several, or --manifest LIST")
+    path = args.files[0]
+    got = analyze_file(path, LoopOptions.from_args(args))
     if args.json:
-        print(json.dumps(shown))
+        print(json.dumps(got.shown))
     else:
-        _print(a, shown)
+        _print(got.assessment, got.shown)
     if args.plot is not None:
-        plot_analysis(args.plot, d, ts, op_range, shown_from)
+        plot_analysis(args.plot, got.details, got.ts, got.op_range, got.clock)
         if not args.json:
             print(f"wrote {args.plot}")
+    if args.csv is not None:
+        batch.write_csv(args.csv, [batch.Row(path, got.shown)])
+        if not args.json:
+            print(f"wrote {args.csv}")
     return 0
 
 
@@ -144,98 +129,3 @@ def _print(a: Assessment, shown: dict[str, Any]) -> None:
 VOTE_WORDS = {1: "stiction", -1: "not stiction", 0: "cannot tell"}
 """A vote as the table prints it (the reason's words: :data:`~stiction.diagnosis.reasons.
 VOTES`)."""
-
-
-def bursts(d: Details) -> Stretch | None:
-    """The stretch that cycles, where the window's verdict rests on a cycle it found
-    irregular (:func:`~stiction.diagnosis.stretch.regular_stretch`), and the stretch is a
-    real part of the window; else None."""
-    if d.op is None or d.pv is None or d.cycle is None or d.cycle.regular or \
-            d.assessment.verdict not in BURST_VERDICTS:
-        return None
-    st = regular_stretch(d.op, d.pv)
-    if st is None or st.stop - st.start > PART * d.op.size:
-        return None
-    return st
-
-
-BURST_VERDICTS = (Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED,
-                  Verdict.NOT_OSCILLATING)
-PART = 0.8
-"""A stretch longer than this share of the window is the window: no hint."""
-
-
-@dataclasses.dataclass(frozen=True)
-class FileTime:
-    """The file's own time for the samples: ``t`` (seconds) per row, ``ts`` the grid's
-    sample time; the time column ``col`` of ``table`` (None: rows every ``ts`` from 0)."""
-
-    table: historian.Table
-    col: int | None
-    t: np.ndarray
-    ts: float
-
-    def seconds(self, text: str, option: str) -> float:
-        """``--from``/``--to``'s value in the file's seconds."""
-        if self.col is None:
-            try:
-                return float(text)
-            except ValueError:
-                raise UsageError(f"{option} {text!r}: with --ts give seconds from the first "
-                                 "row") from None
-        row = [""] * len(self.table.header)
-        row[self.col] = text
-        one = dataclasses.replace(self.table, rows=[row], lines=[0])
-        try:
-            return float(historian.times(one, self.col).seconds[0])
-        except UsageError:
-            raise UsageError(f"{option} {text!r}: not a time as the file writes them "
-                             f"(e.g. {self.text(0)!r})") from None
-
-    def cut(self, args: argparse.Namespace, op: np.ndarray, pv: np.ndarray
-            ) -> tuple[int, np.ndarray, np.ndarray]:
-        """The samples between ``--from`` and ``--to`` (index of the first, op, pv)."""
-        if args.start is None and args.stop is None:
-            return 0, op, pv
-        grid = self.t[0] + np.arange(op.size) * self.ts
-        lo = -np.inf if args.start is None else self.seconds(args.start, "--from")
-        hi = np.inf if args.stop is None else self.seconds(args.stop, "--to")
-        keep = np.flatnonzero((grid >= lo - self.ts / 4) & (grid <= hi + self.ts / 4))
-        if keep.size < 2:
-            raise UsageError(f"--from/--to: {keep.size} samples between them (the file runs "
-                             f"from {self.text(0)!r} to {self.text(op.size - 1)!r})")
-        return int(keep[0]), op[keep[0] : keep[-1] + 1], pv[keep[0] : keep[-1] + 1]
-
-    def text(self, k: int) -> str:
-        """Sample ``k``'s time as the file wrote it (the nearest row's stamp)."""
-        at = self.t[0] + k * self.ts
-        if self.col is None:
-            return f"{at:g}"
-        i = int(np.argmin(np.abs(self.t - at)))
-        return self.table.rows[i][self.col].strip()
-
-    def stretch(self, st: Stretch, first: int) -> dict[str, Any]:
-        """The stretch in the file's time (``first``: the window's first sample)."""
-        return {"from": self.text(first + st.start), "to": self.text(first + st.stop - 1),
-                "source": st.source, "period_s": st.period * self.ts,
-                "regularity": st.regularity}
-
-
-SIZE_FIELDS = ("fd", "fs", "jump", "fd_op", "fs_op", "cycles_used")
-
-
-def view(a: Assessment, d: Details | None = None, stretch: dict[str, Any] | None = None
-         ) -> dict[str, Any]:
-    """What ``analyze`` prints: the assessment's fields with the sizes in one unit under
-    ``size`` (:meth:`stiction.Assessment.sizes`: unit, fd, fs, jump and, when read from
-    the limit cycle, cycles_used; None when not sized) instead of fractions beside OP
-    units; ``weighed``: what weighed in the decision, strongest first (``d.parts``: each
-    entry's part of the log-odds, + for stiction; not votes); ``stretch``: the stretch to
-    analyse alone, in the file's time, or None."""
-    out = {k: v for k, v in a.to_dict().items() if k not in SIZE_FIELDS}
-    sizes = a.sizes()
-    out["size"] = None if sizes is None else sizes.to_dict()
-    parts = {} if d is None or d.parts is None else d.parts
-    out["weighed"] = dict(sorted(parts.items(), key=lambda kv: -abs(kv[1])))
-    out["stretch"] = stretch
-    return out

@@ -17,14 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from .._assessment import Assessment
 from ..diagnosis.analyze import analyze
-from ..plant import PlantAssessment, analyze_plant
-from ..plant.spectra import spectra
+from ..plant import analyze_plant
 from . import historian
-from ._common import Subparsers, UsageError, pyplot
+from ._common import Subparsers, UsageError
+from .plantout import as_json, print_text, spectral_map
 
-__all__ = ["add_plant", "loop_columns"]
+__all__ = ["add_plant", "as_json", "loop_columns"]
 
 _ROLE = re.compile(r"^(?P<tag>.+?)[._ ](?P<kind>op|mv|out|pv|sp)$", re.IGNORECASE)
 _KIND = {"op": "op", "mv": "op", "out": "op", "pv": "pv", "sp": "sp"}
@@ -38,8 +37,9 @@ def add_plant(sub: Subparsers) -> None:
         "it; see `stiction analyze --help` for the formats), finds the loops from TAG.OP / "
         "TAG.PV column pairs (TAG_OP, TAG.MV, TAG.OUT, any case), uses the other numeric "
         "columns as indicators, and prints the oscillations the loops share (period, "
-        "members, the source ranking) and every loop's verdict: a loop that only carries a "
-        "cycle from elsewhere is 'propagated'.")
+        "members, the source ranking with its evidence) and every loop's verdict: a loop "
+        "that only carries a cycle from elsewhere is 'propagated'. `stiction simulate "
+        "--plant NAME` writes such an export of a simulated plant.")
     p.add_argument("file", type=Path, help="CSV file with a header row")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--time", default=None, help="time column (default: t, time, timestamp, "
@@ -49,6 +49,13 @@ def add_plant(sub: Subparsers) -> None:
                    help="loops whose process integrates (levels)")
     p.add_argument("--cascade", nargs="+", default=[], metavar="OUTER=INNER",
                    help="cascades: the outer loop's OP is the inner loop's setpoint")
+    p.add_argument("--units", nargs="+", default=[], metavar="UNIT=TAG,TAG",
+                   help="plant units: groups form within a unit only (loops of independent "
+                   "units that happen to share a period are not one group); tags not named "
+                   "are one unit among themselves")
+    p.add_argument("--unit-prefix", action="store_true",
+                   help="each tag's unit is the text before its first '.', '/' or ':' "
+                   "(U1.FIC101 is in unit U1)")
     historian.add_reading_options(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", type=Path, default=None,
@@ -137,90 +144,43 @@ def _options(args: argparse.Namespace, loops: dict[str, Any]
             cascades)
 
 
+def _units(args: argparse.Namespace, loops: dict[str, Any], indicators: dict[str, Any]
+           ) -> dict[str, str]:
+    """Each signal's unit: ``--units UNIT=TAG,TAG ...`` or ``--unit-prefix`` (the text before
+    a tag's first '.', '/' or ':'; a tag without one has no unit)."""
+    units: dict[str, str] = {}
+    if args.unit_prefix:
+        for tag in [*loops, *indicators]:
+            m = re.match(r"^([^./:]+)[./:].", tag)
+            if m:
+                units[tag] = m[1]
+    known = {t.casefold(): t for t in [*loops, *indicators]}
+    for item in args.units:
+        unit, sep, tags = item.partition("=")
+        if not sep or not unit or not tags:
+            raise UsageError(f"--units {item!r}: give UNIT=TAG,TAG,...")
+        for tag in tags.split(","):
+            name = known.get(tag.strip().casefold())
+            if name is None:
+                raise UsageError(f"--units {item!r}: no loop or indicator {tag.strip()!r} in "
+                                 f"the file (loops: {', '.join(loops)})")
+            units[name] = unit
+    return units
+
+
 def _cmd_plant(args: argparse.Namespace) -> int:
     ts, loops, indicators, notes = _read(args)
     processes, cascades = _options(args, loops)
+    units = _units(args, loops, indicators)
     before = {tag: analyze(op, pv, ts=ts, process=processes[tag])
               for tag, (op, pv) in loops.items()}
     view = analyze_plant(loops, ts=ts, indicators=indicators, assessments=before,
-                         processes=processes, cascades=cascades)
+                         processes=processes, cascades=cascades, units=units)
     after = view.apply(before)
     if args.json:
         print(json.dumps(as_json(view, after, notes)))
     else:
-        _print(view, after, notes)
+        print_text(view, after, notes)
     if args.plot is not None:
         spectral_map(args.plot, ts, loops, view)
     return 0
-
-
-def as_json(view: PlantAssessment, after: dict[str, Assessment], notes: list[str]
-            ) -> dict[str, Any]:
-    """``groups`` (each with ``loops``, ``period_s``, ``source_ranking``) and ``loops``
-    (each with ``loop``, ``verdict``, ``confidence``, ``group``, ``role``)."""
-    return {
-        "groups": [{
-            "group": g.number, "period_s": g.period_s, "loops": list(g.loops),
-            "indicators": [m.name for m in g.members if m.kind == "indicator"],
-            "strength": {m.name: round(m.strength, 4) for m in g.members},
-            "source": g.source, "external": g.external, "reason": g.reason,
-            "source_ranking": [{"loop": e.loop, "score": round(e.score, 4),
-                                "valve_gain": e.valve_gain, "kano": e.kano,
-                                "episodes": e.episodes, "confidence": e.confidence,
-                                "harmonics": round(e.harmonics, 4)} for e in g.ranking],
-        } for g in view.groups],
-        "loops": [{"loop": tag, "verdict": str(a.verdict), "confidence": a.confidence,
-                   "group": view.roles[tag].group, "role": view.roles[tag].role,
-                   "reason": a.reason} for tag, a in after.items()],
-        "warnings": notes,
-    }
-
-
-def _print(view: PlantAssessment, after: dict[str, Assessment], notes: list[str]) -> None:
-    if not view.groups:
-        print("no oscillation shared by two loops or more")
-    for g in view.groups:
-        where = f"source {g.source}" if g.source else "no loop is its source"
-        print(f"group {g.number}: period {g.period_s:.0f} s, {len(g.loops)} loops, {where}")
-        print("  members: " + ", ".join(f"{m.name} {m.strength:.0%}" for m in g.members))
-        print("  source ranking: " + ", ".join(f"{e.loop} {e.score:.2f}" for e in g.ranking))
-        print(f"  {g.reason}")
-    print()
-    width = max(len(t) for t in after)
-    for tag, a in after.items():
-        r = view.roles[tag]
-        place = f"group {r.group} {r.role}" if r.group else "-"
-        conf = "" if a.confidence is None else f"{a.confidence:.2f}"
-        print(f"{tag:<{width}}  {a.verdict!s:<20} {conf:>5}  {place:<16} {a.reason}")
-    for n in notes:
-        print(f"warning: {n}")
-
-
-def spectral_map(path: Path, ts: float, loops: dict[str, tuple[np.ndarray, np.ndarray]],
-                 view: PlantAssessment) -> None:
-    """Loops x frequency, each loop's OP and PV power (normalised, log scale), the groups'
-    periods marked."""
-    names = list(loops)
-    rows = np.array([s for tag in names for s in loops[tag]])
-    spec = spectra(np.nan_to_num(rows - np.nanmean(rows, axis=1, keepdims=True)))
-    power = spec.power[0::2] + spec.power[1::2]
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(10, 0.4 * len(names) + 2))
-    period = 1.0 / np.maximum(spec.freqs, 1e-12) * ts
-    ax.pcolormesh(period[::-1], np.arange(len(names)), np.log10(power[:, ::-1] + 1e-6),
-                  shading="nearest")
-    ax.set_xscale("log")
-    ax.set_yticks(np.arange(len(names)), names)
-    ax.set_xlabel("period, s")
-    for g in view.groups:
-        ax.axvline(g.period_s, color="w", lw=1, ls="--")
-        rows_in = [names.index(m) for m in g.loops]
-        ax.scatter([g.period_s] * len(rows_in), rows_in, color="w", marker="o", s=30,
-                   edgecolors="k", zorder=3)
-        ax.text(g.period_s, len(names) - 0.45, f" group {g.number}"
-                + (f": {g.source}" if g.source else ": no loop source"), color="w", fontsize=8)
-    ax.set_title("power of each loop's OP and PV (log scale); dots: the groups' members",
-                 pad=12)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)

@@ -10,6 +10,8 @@ import numpy as np
 
 from ..models.signature import valve_signature
 from ..scenarios.named import SCENARIOS, Scenario, SimResult, scenario, simulate
+from ..scenarios.plant import simulate_plants
+from ..scenarios.plants import NAMED_PLANTS
 from ..scenarios.steptest import simulate_step_test
 from ..valvetest.sequence import step_test_levels
 from ._common import Subparsers, UsageError, param_option, pyplot
@@ -23,11 +25,20 @@ _SIM_PARAMS = ("fs", "fd", "k", "kc", "ti", "kp", "tau", "theta", "ts", "sp_step
 def add_simulate(sub: Subparsers) -> None:
     p = sub.add_parser(
         "simulate",
-        help="simulate a named closed-loop scenario and write t, sp, op, pv, vp as CSV",
+        help="simulate a named closed-loop scenario and write t, sp, op, pv, vp as CSV "
+             "(or a plant of many loops: --plant)",
         description="Simulate a scenario. Scenarios: "
-        + "; ".join(f"{k}: {s.description}" for k, s in SCENARIOS.items()),
+        + "; ".join(f"{k}: {s.description}" for k, s in SCENARIOS.items())
+        + ". Plants (--plant, a wide export for `stiction plant`: t, then TAG.OP and TAG.PV "
+        "of every loop and the indicators): "
+        + "; ".join(f"{k}: {s.description}" for k, s in NAMED_PLANTS.items()),
     )
-    p.add_argument("--scenario", required=True, help="scenario name (see above)")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--scenario", help="scenario name (see above)")
+    which.add_argument("--plant", choices=sorted(NAMED_PLANTS), metavar="NAME",
+                       help="a plant of interacting loops (see above); --duration (default "
+                       "7200 s), --ts (the export's sample time, whole seconds, default 1) "
+                       "and --seed apply")
     for name in _SIM_PARAMS:
         p.add_argument(param_option(name), dest=name, type=float, default=None,
                        help=f"override the scenario's {name}")
@@ -48,7 +59,42 @@ def add_simulate(sub: Subparsers) -> None:
     p.set_defaults(handler=_cmd_simulate)
 
 
+def _cmd_plant(args: argparse.Namespace) -> int:
+    """``--plant NAME``: the named plant simulated, written as a wide CSV export."""
+    extra = [param_option(k) for k in _SIM_PARAMS if k != "ts" and getattr(args, k) is not None]
+    extra += ["--historian"] if args.historian is not None else []
+    extra += ["--noise"] if args.noise else []
+    if extra:
+        raise UsageError(f"--plant takes --duration, --ts and --seed only, not {extra[0]}")
+    ts = 1.0 if args.ts is None else args.ts
+    if ts < 1.0 or ts != round(ts):
+        raise UsageError(f"--ts {ts:g}: a plant's export is sampled every whole second or more")
+    duration = 7200.0 if args.duration is None else args.duration
+    if not duration >= 10.0 * ts:
+        raise UsageError(f"--duration {duration:g}: at least 10 samples (10 x --ts)")
+    sc = NAMED_PLANTS[args.plant]
+    (rec,) = simulate_plants([sc], duration=duration, sample=round(ts), seed=args.seed)
+    names = list(rec.op)
+    columns = [f"{n}.{k}" for n in names for k in ("OP", "PV")] + list(rec.indicators)
+    series = [x for n in names for x in (rec.op[n], rec.pv[n])] + list(rec.indicators.values())
+    t = np.arange(series[0].size) * rec.ts
+    try:
+        with args.output.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["t", *columns])
+            w.writerows(np.round(np.column_stack([t, *series]), 6).tolist())
+    except OSError as exc:
+        raise UsageError(f"cannot write {args.output}: {exc.strerror}") from exc
+    print(f"wrote {t.size} samples ({t[-1] + rec.ts:g} s, every {rec.ts:g} s) of plant "
+          f"{sc.name} ({sc.description}) to {args.output}: {len(names)} loops, "
+          f"{len(rec.indicators)} indicator{'' if len(rec.indicators) == 1 else 's'}; try: "
+          f"stiction plant {args.output}")
+    return 0
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    if args.plant is not None:
+        return _cmd_plant(args)
     overrides = {k: getattr(args, k) for k in _SIM_PARAMS if getattr(args, k) is not None}
     sc = scenario(args.scenario, **overrides)
     if args.step_test is not None:

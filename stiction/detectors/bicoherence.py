@@ -273,7 +273,7 @@ def _spectra(y: FloatArray, seg_len: int, k: int) -> NDArray[np.complex128]:
     hop = seg_len // 2
     idx = np.arange(seg_len)[None, :] + hop * np.arange(k)[:, None]
     seg = y[idx]
-    seg = seg - seg.mean(axis=1, keepdims=True)
+    seg = seg - np.add.reduce(seg, axis=1, keepdims=True) / seg_len
     return np.asarray(fft.rfft(seg * _window(seg_len), axis=1))
 
 
@@ -282,8 +282,9 @@ def _squared_bicoherence(spec: NDArray[np.complex128], i: NDArray[np.intp],
     k = spec.shape[0]
     pw = spec.real**2 + spec.imag**2  # (K, bins)
     pair = (pw.T @ pw)[i, j] / k  # E|X(f1) X(f2)|^2
-    d = pair * pw.mean(axis=0)[i + j]
-    if not d.max() > 0.0:
+    d = pair * (np.add.reduce(pw, axis=0) / k)[i + j]
+    d_max = float(np.maximum.reduce(d))
+    if not d_max > 0.0:
         return None
     # E[X(f1) X(f2) X*(f1+f2)], a block of bifrequencies at a time: whole (K, M) temporaries
     # are each allocated afresh (mmap) and cost more in page faults than the arithmetic
@@ -297,9 +298,9 @@ def _squared_bicoherence(spec: NDArray[np.complex128], i: NDArray[np.intp],
         prod = by_bin[i[lo:hi]]
         prod *= by_bin[j[lo:hi]]
         prod *= conj[ij[lo:hi]]
-        b[lo:hi] = prod.sum(axis=1)
+        b[lo:hi] = np.add.reduce(prod, axis=1)
     b /= k
-    eps = max(percentiles(d, (EPSILON_PERCENTILE,))[0], EPSILON_FLOOR * float(d.max()))
+    eps = max(percentiles(d, (EPSILON_PERCENTILE,))[0], EPSILON_FLOOR * d_max)
     return np.asarray((b.real**2 + b.imag**2) / (d + eps))
 
 

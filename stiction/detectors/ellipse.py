@@ -136,7 +136,7 @@ def _check_period(period: object) -> float:
 
 def _spectra(u: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Real FFT of both signals at once, and the frequencies (cycles per sample)."""
-    spec = fft.rfft(np.stack((u, y)), axis=1)
+    spec = fft.rfft(np.array((u, y)), axis=1)
     return np.asarray(spec), np.arange(spec.shape[1]) / u.size
 
 
@@ -216,7 +216,8 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     if not (np.isfinite(op).all() and np.isfinite(pv).all()):
         return _none("non-finite samples")
     # scale first: the filters and the fit then see numbers of order one whatever the units
-    r_op, r_pv = float(np.ptp(op)), float(np.ptp(pv))
+    r_op = float(np.maximum.reduce(op) - np.minimum.reduce(op))  # np.ptp, without its layers
+    r_pv = float(np.maximum.reduce(pv) - np.minimum.reduce(pv))
     if not (r_op > 0 and r_pv > 0):
         return _none("OP or PV does not move")
     if not (math.isfinite(r_op) and math.isfinite(r_pv)):
@@ -245,7 +246,7 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     keep = (f >= BAND_LO * f0) & (f <= BAND_HI * f0)
     power = spec[0].real ** 2 + spec[0].imag ** 2
     share = float(power[keep].sum() / max(float(power[1:].sum()), 1e-300))
-    kept = np.flatnonzero(keep)  # one stretch of bins: zero what lies either side
+    kept = keep.nonzero()[0]  # one stretch of bins: zero what lies either side
     spec[:, : kept[0] if kept.size else spec.shape[1]] = 0.0
     spec[:, kept[-1] + 1 if kept.size else 0 :] = 0.0
     filt = fft.irfft(spec, n, axis=1)
@@ -264,7 +265,7 @@ def ellipse_band(op: FloatArray, pv: FloatArray, *, period: float,
     # the swing of the filtered OP itself: a cloud that is nearly a line fits a needle-thin
     # (numerically fragile) ellipse whose ends lie far beyond the points; no chord is wider
     # than the points
-    extent = float(xs.max() - xs.min())
+    extent = float(np.maximum.reduce(xs) - np.minimum.reduce(xs))
     chord = min(chord, extent)
     thin = abs(math.sin(math.radians(phase)))
     if thin < LINE:

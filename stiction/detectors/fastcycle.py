@@ -66,21 +66,26 @@ class FastCycle:
 
 
 def _kurtosis(x: FloatArray) -> float:
-    y = x - x.mean()
+    y = x - np.add.reduce(x) / x.size
     y2 = y * y
-    v = float(y2.mean())
-    return float((y2 * y2).mean()) / (v * v) - 3.0 if v > 0 else 0.0
+    v = float(np.add.reduce(y2) / y2.size)
+    return float(np.add.reduce(y2 * y2) / y2.size) / (v * v) - 3.0 if v > 0 else 0.0
+
+
+def _ptp(x: FloatArray) -> float:
+    """``np.ptp(x)`` without its Python layers."""
+    return float(np.maximum.reduce(x) - np.minimum.reduce(x))
 
 
 def _crossing(x: FloatArray) -> float:
     above = x > median(x)
-    return float(np.mean(above[1:] != above[:-1]))
+    return np.count_nonzero(above[1:] != above[:-1]) / (above.size - 1)
 
 
 def fast_cycle(op: FloatArray, pv: FloatArray) -> FastCycle:
     """The fast-cycle test (module doc) on OP and PV with their baselines removed
     (equal-length, finite)."""
-    if op.size < MIN_SAMPLES or np.ptp(op) == 0 or np.ptp(pv) == 0:
+    if op.size < MIN_SAMPLES or _ptp(op) == 0 or _ptp(pv) == 0:
         return FastCycle(0, "too short or flat to tell")
     k = (_kurtosis(op), _kurtosis(pv))
     cross = min(_crossing(op), _crossing(pv))

@@ -220,7 +220,7 @@ def _period(pv: FloatArray, op: FloatArray | None, integrating: bool) -> float |
 def _first_zero(s: FloatArray) -> float | None:
     """Interpolated position of the first sign change of ``s`` (s[0] at 0)."""
     sg = np.signbit(s)
-    k = np.flatnonzero(sg[1:] != sg[:-1])
+    k = (sg[1:] != sg[:-1]).nonzero()[0]
     if k.size == 0:
         return None
     i = int(k[0])
@@ -231,7 +231,7 @@ def _first_zero(s: FloatArray) -> float | None:
 def _cross_correlation(u: FloatArray, y: FloatArray, p: float) -> Horch:
     n = u.size
     nfft = fft.next_fast_len(2 * n, real=True)
-    fu, fy = fft.rfft(np.stack((u, y)), nfft, axis=1)  # one FFT for both: pocketfft pairs rows
+    fu, fy = fft.rfft(np.array((u, y)), nfft, axis=1)  # one FFT for both: pocketfft pairs rows
     cc = fft.irfft(np.conj(fu) * fy, nfft)  # cc[k] = sum_t u[t] y[t + k], negative k wrap
     cc = cc / math.sqrt(dot(u, u) * dot(y, y))
     reach = min(math.ceil(SEARCH * p), n - 1)
@@ -239,7 +239,7 @@ def _cross_correlation(u: FloatArray, y: FloatArray, p: float) -> Horch:
     left = np.concatenate((cc[:1], cc[nfft - reach :][::-1]))  # lags 0, -1, -2, ...
     half = min(int(p // 2), n - 1)
     near = np.concatenate((cc[: half + 1], cc[nfft - half :]))
-    r_max = float(np.abs(near).max())
+    r_max = float(np.maximum.reduce(np.abs(near)))
     r0_ratio = abs(float(cc[0])) / r_max if r_max > 0 else None
     res = Horch(0, "", False, p, r_max=r_max, r0_ratio=r0_ratio)
     if r_max < SIGNIFICANCE / math.sqrt(n):

@@ -151,8 +151,9 @@ def _scale(period: object) -> int:
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Start and end (exclusive) of the runs of True in ``mask``."""
-    d = np.diff(np.concatenate(([0], mask.view(np.int8), [0])))
-    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    m = np.concatenate(([0], mask.view(np.int8), [0]))
+    d = m[1:] - m[:-1]
+    return (d == 1).nonzero()[0], (d == -1).nonzero()[0]
 
 
 def _arrays(op: FloatArray, pv: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -204,13 +205,13 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None,
     y = (pv - 0.5 * (pp[0] + pp[2])) / r_pv  # centred on PV's mid-range
     # the noise SD scales with the signal: of the scaled copies, that of the raw signals
     sd_u, sd_y = (noise[0] / r_op, noise[1] / r_pv) if noise else (noise_sd(u), noise_sd(y))
-    cu = np.concatenate(([0.0], np.cumsum(u)))
-    cy = np.concatenate(([0.0], np.cumsum(y)))
+    cu = np.concatenate(([0.0], u.cumsum()))
+    cy = np.concatenate(([0.0], y.cumsum()))
     t = np.arange(m, n - m + 1)
     dy = (cy[t + m] - 2.0 * cy[t] + cy[t - m]) / m  # mean after - mean before
     eps_y = max(STILL_Z * sd_y * math.sqrt(2.0 / m), STILL_RANGE)
     still = np.abs(dy) <= eps_y
-    still_share = float(still.mean())
+    still_share = np.count_nonzero(still) / still.size
     eps_u = max(OP_Z * sd_u * math.sqrt(2.0 / m), OP_RANGE)
     a, b = _runs(still)
     a, b = t[a], t[b - 1] + 1  # sample positions [a, b)
@@ -218,17 +219,18 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None,
     a, b = a[long_], b[long_]
     mu = (cu[m:] - cu[:-m]) / m  # mu[t]: mean of u[t:t + m]
     # OP's total travel on m-sample means, averaged over the m phases of the grid
-    total_tv = float(np.abs(mu[m:] - mu[:-m]).sum()) / m
+    total_tv = float(np.add.reduce(np.abs(mu[m:] - mu[:-m]))) / m
     if a.size:
         mu_a = mu[a]  # OP mean over the first and last scale of the run
         mu_b = mu[b - m]
         travel = mu_b - mu_a
         # monotone: OP's total variation over at most PARTS equal parts of the run (parts of
         # at least one scale), so that noise does not add up along a long run
-        parts = np.clip((b - a) // m, 1, PARTS)
+        parts = np.minimum(np.maximum((b - a) // m, 1), PARTS)
         frac = np.minimum(np.arange(PARTS + 1)[None, :], parts[:, None]) / parts[:, None]
         pos = a[:, None] + np.rint(frac * (b - m - a)[:, None]).astype(np.intp)
-        tv = np.abs(np.diff(mu[pos], axis=1)).sum(axis=1)
+        mp = mu[pos]
+        tv = np.add.reduce(np.abs(mp[:, 1:] - mp[:, :-1]), axis=1)
         offset = (cy[b] - cy[a]) / (b - a)
         # the interval ends in a slip: PV's mean one to two scales later has moved away
         end = np.minimum(b + 2 * m, n)
@@ -249,7 +251,7 @@ def kano_test(op: FloatArray, pv: FloatArray, *, period: float | None = None,
     index = float((b - a).sum()) / n
     travel_share = float(np.abs(travel).sum()) / total_tv if total_tv > 0 else 0.0
     band = median(np.abs(travel)) * r_op if count else None
-    moved = (float(u.max()) - float(u.min())) >= 10.0 * eps_u
+    moved = (float(np.maximum.reduce(u)) - float(np.minimum.reduce(u))) >= 10.0 * eps_u
     vote, note = _vote(index, count, still_share, moved and ramp_share <= INDEX_NO, band)
     return Kano(index, min(travel_share, 1.0), still_share, count, dropped, band, vote, note)
 

@@ -92,7 +92,7 @@ class StickSlip:
 
 def _prefix(x: FloatArray) -> FloatArray:
     """Prefix sums of ``x``, 0 first (once per window: both scales read them)."""
-    return np.concatenate(([0.0], np.cumsum(x)))
+    return np.concatenate(([0.0], x.cumsum()))
 
 
 def _means(c: FloatArray, m: int) -> FloatArray:
@@ -114,18 +114,18 @@ def _candidates(a: FloatArray, thr: float, m: int) -> list[int]:
     Points ``2 m`` or more apart never block each other, so the points above ``thr`` fall
     into independent clusters; a cluster narrower than ``2 m`` (a slip's few samples) gets
     one pick, its first maximum, and only wider ones run the greedy."""
-    above = np.flatnonzero(a >= thr)
+    above = (a >= thr).nonzero()[0]
     if above.size == 0:
         return []
     vals = a[above]
-    starts = np.concatenate(([0], np.flatnonzero(above[1:] - above[:-1] >= 2 * m) + 1))
-    ends = np.append(starts[1:], above.size)
+    starts = np.concatenate(([0], (above[1:] - above[:-1] >= 2 * m).nonzero()[0] + 1))
+    ends = np.concatenate((starts[1:], [above.size]))
     top = np.maximum.reduceat(vals, starts)
     cluster = np.repeat(np.arange(starts.size), ends - starts)
-    at_top = np.flatnonzero(vals == top[cluster])
+    at_top = (vals == top[cluster]).nonzero()[0]
     first = at_top[np.concatenate(([True], cluster[at_top[1:]] != cluster[at_top[:-1]]))]
     picked = above[first].tolist()
-    for c in np.flatnonzero(above[ends - 1] - above[starts] >= 2 * m).tolist():
+    for c in (above[ends - 1] - above[starts] >= 2 * m).nonzero()[0].tolist():
         picked.remove(int(above[first[c]]))
         picked.extend(_greedy(above[starts[c] : ends[c]], vals[starts[c] : ends[c]], m))
     return sorted(picked)
@@ -135,7 +135,7 @@ def _greedy(at: np.ndarray, vals: FloatArray, m: int) -> list[int]:
     """:func:`_candidates` within one cluster ``at`` (positions, ascending) of values
     ``vals``."""
     picked: list[int] = []
-    for i in at[np.argsort(-vals, kind="stable")].tolist():
+    for i in at[(-vals).argsort(kind="stable")].tolist():
         if all(abs(i - j) >= 2 * m for j in picked):
             picked.append(i)
     return picked
@@ -170,7 +170,7 @@ def _spreads(x: FloatArray, lo: np.ndarray, hi: np.ndarray) -> FloatArray:
     with +inf, sorted (the ranks stay within each row's own values)."""
     n = hi - lo
     out = np.empty(n.size)
-    order = np.argsort(n, kind="stable")  # similar lengths together: little padding
+    order = n.argsort(kind="stable")  # similar lengths together: little padding
     for sl in row_chunks(n[order]):
         rows = order[sl]
         idx, mask = ragged(lo[rows], n[rows])
@@ -186,7 +186,7 @@ def _turns(us: FloatArray, lo: np.ndarray, end: np.ndarray) -> np.ndarray:
     from ``us[end[k]]``."""
     n = end - lo + 1
     out = np.empty(n.size, dtype=np.intp)
-    order = np.argsort(n, kind="stable")
+    order = n.argsort(kind="stable")
     for sl in row_chunks(n[order]):
         rows = order[sl]
         idx, mask = ragged(lo[rows], n[rows])
@@ -257,12 +257,13 @@ def _episodes(sums: tuple[FloatArray, FloatArray], m: int, noise: tuple[float, f
           & ~((np.copysign(1.0, step) == np.copysign(1.0, travel))
               & (np.abs(step) >= SAME_WAY_KICK * np.abs(travel))))
     # OP monotone over the stuck phase (m-sample means), then PV still over it
-    k = np.flatnonzero(ok)
+    k = ok.nonzero()[0]
     steps = (stuck[k] // m).astype(np.intp)  # path points us[lo], us[lo + m], ... after the first
-    path = lo[k, None] + m * np.arange(int(steps.max(initial=0)) + 1)[None, :]
+    path = lo[k, None] + m * np.arange(int(np.maximum.reduce(steps, initial=0)) + 1)[None, :]
+    up = us[np.minimum(path, n - 1)]
     hop = np.where(np.arange(path.shape[1] - 1)[None, :] < steps[:, None],
-                   np.abs(np.diff(us[np.minimum(path, n - 1)], axis=1)), 0.0)
-    tv = hop.sum(axis=1)
+                   np.abs(up[:, 1:] - up[:, :-1]), 0.0)
+    tv = np.add.reduce(hop, axis=1)
     k = k[(tv > 0) & (np.abs(travel[k]) >= MONOTONE * tv)]
     k = k[_spreads(ys, lo[k], end[k] + 1) <= STILL_SPREAD * np.abs(d[k])]
     return [Episode(*fields) for fields in zip(at[k].tolist(), d[k].tolist(), travel[k].tolist(),

@@ -78,24 +78,26 @@ def half_periods(x: FloatArray, period: float, *,
     amp = 0.5 * float(p95 - p5)
     h = 0.1 * amp
     state = np.where(ys > h, 1, np.where(ys < -h, -1, 0))
-    nz = np.flatnonzero(state)
+    nz = state.nonzero()[0]
     if nz.size < 2:
         return np.empty(0), ys
     st = state[nz]
-    change = np.flatnonzero(st[1:] != st[:-1]) + 1  # positions in nz where state flips
+    change = (st[1:] != st[:-1]).nonzero()[0] + 1  # positions in nz where state flips
     # the crossing: last sign change of ys before the sample where the new state begins
-    raw = np.flatnonzero(np.signbit(ys[1:]) != np.signbit(ys[:-1]))  # between raw, raw+1
+    sb = np.signbit(ys)
+    raw = (sb[1:] != sb[:-1]).nonzero()[0]  # between raw, raw+1
     ends = nz[change]
-    k = np.searchsorted(raw, ends, side="left") - 1
-    k = np.clip(k, 0, max(raw.size - 1, 0))
+    k = raw.searchsorted(ends, side="left") - 1
+    k = np.minimum(np.maximum(k, 0), max(raw.size - 1, 0))
     if raw.size == 0:
         return np.empty(0), ys
     i = raw[k]
     a, b = ys[i], ys[i + 1]
     z = i + np.where(a != b, a / (a - b), 0.5)
-    z = np.unique(z)
+    # z is nondecreasing (one crossing per flip, in order): its distinct values, as np.unique
+    z = z[np.concatenate(([True], z[1:] != z[:-1]))]
     if z.size > 1:
-        keep = np.concatenate(([True], np.diff(z) > period / 6.0))
+        keep = np.concatenate(([True], z[1:] - z[:-1] > period / 6.0))
         z = z[keep]
     return np.asarray(z, dtype=np.float64), ys
 
@@ -127,14 +129,14 @@ def stiction_index(x: FloatArray, period: float, *, detrended: bool = False,
     if count < 2:
         return StictionIndex(None, count, 0.0, 0.0)
     z0, length, i0, n_k = z0[keep], length[keep], i0[keep], (i1 - i0)[keep]
-    order = np.argsort(n_k, kind="stable")
+    order = n_k.argsort(kind="stable")
     sse_s = sse_t = 0.0
     for sl in row_chunks(n_k[order]):
         rows = order[sl]
         s, t = _sse_pair(y, ys, (z0[rows], length[rows]), i0[rows], n_k[rows])
         sse_s += s
         sse_t += t
-    n_used = float(n_k.sum())
+    n_used = float(np.add.reduce(n_k))
     # each fit spends two parameters per half period on the noise: the residual keeps
     # (n - 2 count) / n of its variance
     noise_part = var_noise * max(1.0 - 2.0 * count / n_used, 0.0)
@@ -160,17 +162,17 @@ def _sse_pair(y: FloatArray, ys: FloatArray, span: tuple[FloatArray, FloatArray]
     idx, mask = ragged(i0, n)
     nf = n.astype(np.float64)
     seg = np.where(mask, y[idx], 0.0)
-    row_sum = seg.sum(axis=1)
+    row_sum = np.add.reduce(seg, axis=1)
     yc = np.where(mask, seg - (row_sum / nf)[:, None], 0.0)
     u = (idx - z0[:, None]) / length[:, None]
     sine = np.sin(np.pi * u)
     # the triangle's apex: the half period's extremum of the smoothed signal
     sgn = np.sign(row_sum)
     k = np.where(mask, sgn[:, None] * ys[idx], -np.inf).argmax(axis=1)[:, None]
-    up = np.minimum(np.maximum(np.take_along_axis(u, k, axis=1), 0.05), 0.95)
+    up = np.minimum(np.maximum(u[np.arange(u.shape[0])[:, None], k], 0.05), 0.95)
     tri = np.where(u <= up, u / up, (1.0 - u) / (1.0 - up))
-    sse = _sse_rows(yc, np.stack((sine, tri)), mask, nf)
-    return float(sse[0].sum()), float(sse[1].sum())
+    sse = _sse_rows(yc, np.array((sine, tri)), mask, nf)
+    return float(np.add.reduce(sse[0])), float(np.add.reduce(sse[1]))
 
 
 def _sse_rows(yc: FloatArray, basis: FloatArray, mask: np.ndarray, n: FloatArray) -> FloatArray:
@@ -178,7 +180,7 @@ def _sse_rows(yc: FloatArray, basis: FloatArray, mask: np.ndarray, n: FloatArray
     from the centred rows ``yc`` of y (centred first, so the closed form does not cancel);
     ``basis`` stacks several bases (axis 0), each fitted on its own."""
     b = np.where(mask, basis, 0.0)
-    bc = np.where(mask, b - (b.sum(axis=2) / n)[..., None], 0.0)
+    bc = np.where(mask, b - (np.add.reduce(b, axis=2) / n)[..., None], 0.0)
     den = np.einsum("kij,kij->ki", bc, bc)
     num = np.einsum("kij,ij->ki", bc, yc)
     a = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)

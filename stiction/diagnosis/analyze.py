@@ -27,7 +27,7 @@ from .._validate import FloatArray
 from ..detectors.ellipse import EllipseFit
 from ..detectors.hammerstein import HammersteinFit
 from ..quantify.hewang import Quantification, quantify
-from ..quantify.route import limit_cycle, size_valve
+from ..quantify.route import FittedValve, limit_cycle, size_valve
 from ..quantify.travel import Travel, measure_travel
 from ..signal.cycle import Cycle, find_cycle
 from . import model as learned
@@ -288,7 +288,7 @@ def _decide(op_c: FloatArray, pv_c: FloatArray, cycle: Cycle, found: Findings, *
     warnings = (*warnings, *size.warnings)
     head = stiction_head(conf, found.evidence, parts, cycle)
     if size.fd_op is None:
-        return Details(Assessment(Verdict.STICTION, f"{head} Size: not sized, {size.method}.",
+        return Details(Assessment(Verdict.STICTION, f"{head} {unsized(size.method, found)}",
                                   multi_jump=size.multi_jump, warnings=warnings, **base),
                        op_c, pv_c, size.quant, cycle, found, parts)
     scale, unit = (1.0, "OP units") if span is None else (span / 100.0, "% of span")
@@ -306,13 +306,22 @@ def _decide(op_c: FloatArray, pv_c: FloatArray, cycle: Cycle, found: Findings, *
         cycle, found, parts)
 
 
-def _fitted_valve(found: Findings) -> tuple[float, float | None] | None:
-    """fd and fs of the He-Wang valve fitted to PV, where that fit says stiction."""
+def _fitted_valve(found: Findings) -> FittedValve | None:
+    """The He-Wang valve fitted to PV, where that fit found one (fd > 0) and does not say a
+    linear valve explains PV as well."""
     ham = found.results["hammerstein"]
-    if isinstance(ham, HammersteinFit) and found.vote("hammerstein") > 0 and \
-            ham.fd is not None and ham.fd > 0:
-        return ham.fd, ham.fs
+    vote = found.vote("hammerstein")
+    if isinstance(ham, HammersteinFit) and vote >= 0 and ham.fd is not None and ham.fd > 0:
+        return FittedValve(ham.fd, ham.fs, decided=vote > 0)
     return None
+
+
+def unsized(why: str, found: Findings) -> str:
+    """The sentence of a sticky valve not sized: why the limit cycle did not size it, and
+    why the valve fitted to PV did not (the fit's own words)."""
+    ham = next(e for e in found.evidence if e.test == "hammerstein")
+    fit = ham.note if ham.vote >= 0 else f"{ham.note}, so it gives no size"
+    return f"Size: not sized, {why}; the valve fitted to PV: {fit}."
 
 
 def _ellipse_band(found: Findings) -> float | None:

@@ -1,23 +1,23 @@
 """``analyze_plant``: many loops on one time base in, the oscillations they share out.
 
-1. Every signal's spectrum and ACF oscillation (:mod:`.spectra`,
+1. Every signal's gaps bridged (:mod:`.gaps`: a signal with a long gap leaves, with its
+   reason), its spectrum and ACF oscillation (:mod:`.spectra`,
    :func:`stiction.signal.oscillation.detect_oscillations`).
-2. The groups that share an oscillation (:mod:`.groups`): a period, its members and how
-   strongly each carries it.
-3. In each group, the members ranked as its source (:mod:`.source`); the top one named
-   the source when its own valve evidence is enough, else the group has no loop source.
+2. The groups that share an oscillation (:mod:`.groups`), within each unit when loops are
+   given units (loops of independent units that happen to share a period are not one
+   group): a period, its members and how strongly each carries it.
+3. In each group the members' evidence, their ranking as its source and the decision
+   (:mod:`.judge`, :mod:`.source`, :mod:`.decide`): a loop named its source and which
+   evidence named it, or an indicator it enters by from outside, or no source.
 4. Per loop, its role: ``source``, ``follower`` or none (not in any group); a loop in two
    groups takes its role from the one it carries most strongly. Besides the named source,
-   a member whose own valve evidence would name it too is a source of its own (two sticky
-   valves at one period): its ``LoopRole.source`` is itself.
+   a member whose own verdict or valve names it and whom the source does not lead is a
+   source of its own (two sticky valves at one period).
 
-:meth:`PlantAssessment.apply` turns the per-loop assessments into plant-aware ones: a
-follower called ``stiction`` becomes ``propagated`` (the reason names the source, or says
-there is none among the loops, and the shared period); a named source keeps its verdict
-and size, and so does the top candidate of a group with no source named unless an
-indicator carries the cycle about as strongly as the strongest loop (the plant view has no better
-explanation than its own valve: on the TEP plant runs, demoting it lost 37 of the sticking
-valves' calls); a loop in no group keeps its assessment.
+:meth:`PlantAssessment.apply` tells one story per loop: a follower is never ``stiction``
+(it becomes ``propagated``: the reason names the source, or the indicator the cycle enters
+by, and the evidence); a source keeps its verdict and size; a loop in no group keeps its
+assessment.
 """
 
 from __future__ import annotations
@@ -32,16 +32,16 @@ from .._assessment import Assessment, Verdict
 from .._errors import ParameterError
 from .._validate import FloatArray
 from ..signal.oscillation import Oscillation, detect_oscillations
-from .groups import BAND, RawGroup, find_groups
-from .source import MemberEvidence, harmonics, member_evidence, named_source, rank
-from .spectra import Spectra, spectra
+from .decide import IndicatorEvidence
+from .gaps import bridged
+from .groups import RawGroup, find_groups
+from .judge import Judged, Signals, judge
+from .source import MemberEvidence
+from .spectra import spectra
 
 __all__ = ["Group", "LoopRole", "Member", "PlantAssessment", "analyze_plant"]
 
 ROLES = ("source", "follower")
-OUTSIDE = 0.9
-"""A group's cycle is seen entering from outside the loops when a signal that is no loop's
-carries it at least this share of the strongest loop's strength (:attr:`Group.outside`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,7 +58,10 @@ class Member:
 class Group:
     """One oscillation shared by several loops: ``number`` (1, 2, ... by period),
     ``period_s``, its ``members``, the ``ranking`` of its loops as source candidates (best
-    first), ``source`` (a loop, or None when no loop is the source) and the ``reason``."""
+    first, each with its evidence), ``source`` (a loop, or None), the ``reason``, the
+    evidence that named the source (``named_by``), the indicator the cycle enters by from
+    outside (``entry``), why each loop called ``stiction`` that is not a source follows
+    (``demoted``), the indicators' evidence and the ``unit``."""
 
     number: int
     period_s: float
@@ -67,11 +70,14 @@ class Group:
     source: str | None
     reason: str
     also_sources: tuple[str, ...] = ()
-    """Loops besides ``source`` whose own valve evidence names them a source too: a second
-    sticky valve cycling at the same period (two flow loops with one valve model on one
-    PLC), which a shared period alone cannot tell from a follower. Never a declared outer
-    loop of a cascade (its inner loop's valve moves it), never in a group without a loop
-    source."""
+    """Loops besides ``source`` whose own verdict or valve names them a source and whom
+    the source does not lead: a second sticky valve cycling at the same period (two flow
+    loops with one valve model on one PLC). Never a declared outer loop of a cascade."""
+    named_by: tuple[str, ...] = ()
+    entry: str | None = None
+    demoted: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    indicators: tuple[IndicatorEvidence, ...] = ()
+    unit: str = ""
 
     @property
     def loops(self) -> tuple[str, ...]:
@@ -79,17 +85,13 @@ class Group:
 
     @property
     def external(self) -> bool:
-        """No loop analysed is the source: the cycle enters from outside."""
+        """No loop analysed is the source."""
         return self.source is None
 
     @property
     def outside(self) -> bool:
-        """A signal that is no loop's carries the cycle about as strongly as the strongest
-        loop, at least :data:`OUTSIDE` of it (a header pressure, a utility temperature): the
-        cycle is seen entering from there."""
-        loops = [m.strength for m in self.members if m.kind == "loop"]
-        others = [m.strength for m in self.members if m.kind != "loop"]
-        return bool(others) and max(others) >= OUTSIDE * max(loops, default=0.0)
+        """The cycle enters from outside the loops, by indicator :attr:`entry`."""
+        return self.entry is not None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,36 +107,42 @@ class LoopRole:
 
 @dataclasses.dataclass(frozen=True)
 class PlantAssessment:
-    """The groups and every loop's role."""
+    """The groups, every loop's role, and the signals left out (name -> why)."""
 
     groups: tuple[Group, ...]
     roles: Mapping[str, LoopRole]
+    left_out: Mapping[str, str] = dataclasses.field(default_factory=dict)
 
     def group(self, number: int) -> Group:
         return next(g for g in self.groups if g.number == number)
 
     def apply(self, assessments: Mapping[str, Assessment]) -> dict[str, Assessment]:
         """The per-loop assessments with the plant view: a follower's ``stiction`` becomes
-        ``propagated`` (no size: it is not its valve's), but for the top candidate of a
-        group with no source named; everything else unchanged."""
+        ``propagated`` (no size: it is not its valve's); everything else unchanged."""
         out = dict(assessments)
         for name, a in assessments.items():
             role = self.roles.get(name)
             if role is None or role.role != "follower" or a.verdict != Verdict.STICTION:
                 continue
-            g = self.group(role.group or 0)
-            if g.source is None and g.ranking[0].loop == name and not g.outside:
-                continue  # the likeliest source of a group with none named: its own call
-            where = (f"its source is {g.source}" if g.source is not None else
-                     "its source is no loop analysed here (a cycle from outside, or from a "
-                     "loop not read)")
-            out[name] = dataclasses.replace(
-                a, verdict=Verdict.PROPAGATED, fd=None, fs=None, jump=None, fd_op=None,
-                fs_op=None, cycles_used=0, multi_jump=False,
-                reason=f"propagated: the cycle of {g.period_s:.0f} s is shared by "
-                       f"{len(g.loops)} loops and {where}; this loop's own tests said "
-                       f"stiction at {a.confidence or 0.0:.2f}")
+            out[name] = propagated(self.group(role.group or 0), name, a)
         return out
+
+
+def propagated(g: Group, name: str, a: Assessment) -> Assessment:
+    """``a`` (a follower's ``stiction``) as ``propagated``, the reason naming why."""
+    if g.source is not None:
+        where = f"its source is {g.source} (named by {', '.join(g.named_by)})"
+    elif g.entry is not None:
+        where = f"it enters from outside the loops (indicator {g.entry} leads it)"
+    else:
+        where = "no loop analysed here shows evidence of being its source"
+    why = g.demoted.get(name)
+    return dataclasses.replace(
+        a, verdict=Verdict.PROPAGATED, fd=None, fs=None, jump=None, fd_op=None, fs_op=None,
+        cycles_used=0, multi_jump=False,
+        reason=f"propagated: the cycle of {g.period_s:.0f} s is shared by {len(g.loops)} "
+               f"loops and {where}" + (f"; {why}" if why else "")
+               + f"; this loop's own tests said stiction at {a.confidence or 0.0:.2f}")
 
 
 def _series(name: str, value: ArrayLike, n: int | None) -> FloatArray:
@@ -148,6 +156,33 @@ def _series(name: str, value: ArrayLike, n: int | None) -> FloatArray:
     return x
 
 
+def _rows(loops: Mapping[str, tuple[ArrayLike, ArrayLike]], inds: Mapping[str, ArrayLike]
+          ) -> tuple[FloatArray, dict[str, str]]:
+    """Every signal checked and its gaps bridged, as the rows of one matrix (each loop's OP
+    and PV, then the indicators; a loop with a long gap in OP or PV is left out whole: both
+    rows NaN); name -> why for those left out."""
+    signals: list[tuple[str, list[tuple[str, ArrayLike]]]] = [
+        (name, [(f"loops[{name!r}] OP", op), (f"loops[{name!r}] PV", pv)])
+        for name, (op, pv) in loops.items()]
+    signals += [(name, [(f"indicators[{name!r}]", x)]) for name, x in inds.items()]
+    out: FloatArray | None = None
+    left: dict[str, str] = {}
+    i = 0
+    for name, parts in signals:
+        xs = [_series(label, x, None if out is None else out.shape[1]) for label, x in parts]
+        if out is None:
+            out = np.empty((2 * len(loops) + len(inds), xs[0].size))
+        fixed = [bridged(x) for x in xs]
+        bad = [(label.rsplit(" ", 1)[-1] + ": " if len(parts) == 2 else "") + why
+               for (label, _x), (_y, why) in zip(parts, fixed, strict=True) if why]
+        if bad:
+            left[name] = "; ".join(bad)
+        for y, _why in fixed:
+            out[i] = np.nan if bad or y is None else y
+            i += 1
+    return (np.empty((0, 0)) if out is None else out), left
+
+
 def analyze_plant(
     loops: Mapping[str, tuple[ArrayLike, ArrayLike]],
     *,
@@ -156,6 +191,8 @@ def analyze_plant(
     assessments: Mapping[str, Assessment] | None = None,
     processes: Mapping[str, str] | None = None,
     cascades: Mapping[str, str] | None = None,
+    units: Mapping[str, str] | None = None,
+    previous: PlantAssessment | None = None,
 ) -> PlantAssessment:
     """The oscillations ``loops`` share and their sources.
 
@@ -166,96 +203,89 @@ def analyze_plant(
     ts
         Sample time, s.
     indicators
-        Other measured signals (no loop's), name -> series: they join groups and show where
-        a cycle is, but are never named its source.
+        Other measured signals (no loop's), name -> series: they join groups, show where
+        a cycle is and may show it entering from outside, but are never named its source.
     assessments
-        The loops' per-loop assessments (:func:`stiction.analyze`): their confidence
-        breaks near-ties and a named source needs one of at least ``SOURCE_CONFIDENCE``.
-        Without them no source is named (the ranking still is).
+        The loops' per-loop assessments (:func:`stiction.analyze`): their verdicts and
+        confidence are evidence (a loop called ``stiction`` in a group is its source unless
+        other evidence says otherwise). Without them no loop's own verdict counts.
     processes
         Loop name -> "self-regulating" (default) or "integrating".
     cascades
         Outer loop name -> inner loop name, for cascades: the inner loop's valve is the
         outer loop's.
+    units
+        Loop or indicator name -> its unit: groups form within a unit (an indicator
+        without one may join any unit's groups). None or empty: one unit.
+    previous
+        The last round's assessment of the same loops (the gateway): a group's members stay
+        with lower thresholds and others join with higher ones (:mod:`.groups`), a source
+        named then stays while its evidence stands (:mod:`.decide`).
     """
     if not ts > 0:
         raise ParameterError("ts", f"must be > 0, was {ts!r}")
     names = list(loops)
     inds = dict(indicators or {})
-    n: int | None = None
-    rows: list[FloatArray] = []
-    for name in names:
-        op, pv = loops[name]
-        a = _series(f"loops[{name!r}] OP", op, n)
-        n = a.size
-        rows += [a, _series(f"loops[{name!r}] PV", pv, n)]
-    rows += [_series(f"indicators[{k!r}]", v, n) for k, v in inds.items()]
-    if not rows:
+    signals, left = _rows(loops, inds)
+    if not signals.size:
         return PlantAssessment((), {})
     owner = [nm for nm in names for _ in (0, 1)] + list(inds)
     is_loop = [True] * (2 * len(names)) + [False] * len(inds)
-    signals = np.array(rows)
     spec = spectra(signals)
-    finite = np.isfinite(signals).all(axis=1)
-    oscs = detect_oscillations([signals[i] for i in np.flatnonzero(finite & spec.usable)])
-    by_row: list[Oscillation | None] = [None] * len(rows)
-    for i, o in zip(np.flatnonzero(finite & spec.usable), oscs, strict=True):
+    usable = np.isfinite(signals).all(axis=1) & spec.usable
+    oscs = detect_oscillations([signals[i] for i in np.flatnonzero(usable)])
+    by_row: list[Oscillation | None] = [None] * signals.shape[0]
+    for i, o in zip(np.flatnonzero(usable), oscs, strict=True):
         by_row[int(i)] = o
-    raw = find_groups(spec, by_row, owner, is_loop)
-    sigs = _Signals(signals, spec, names, {nm: k for k, nm in enumerate(names)}, owner, is_loop)
-    groups = [_group(k + 1, g, sigs, ts=ts, assessments=assessments or {},
-                     processes=processes or {}, cascades=dict(cascades or {}))
-              for k, g in enumerate(raw)]
-    return PlantAssessment(tuple(groups), _roles(names, groups))
+    unit_of = dict(units or {})
+    held = [] if previous is None else [(g.period_s / ts, {m.name for m in g.members})
+                                        for g in previous.groups]
+    raw: list[tuple[str, RawGroup]] = []
+    for unit in sorted({unit_of.get(nm, "") for nm in names}):
+        rows_in = np.array([(unit_of.get(o, "") == unit) or (not loop and o not in unit_of)
+                            for o, loop in zip(owner, is_loop, strict=True)])
+        raw += [(unit, g) for g in find_groups(spec, by_row, owner, is_loop, rows=rows_in,
+                                                  signals=signals, held=held)]
+    raw.sort(key=lambda x: (x[1].period, x[0]))
+    sigs = Signals(signals, spec, names, {nm: k for k, nm in enumerate(names)}, owner,
+                   is_loop, ts)
+    before = {} if previous is None else {frozenset(g.loops): g.source for g in previous.groups}
+    groups = []
+    for k, (unit, g) in enumerate(raw):
+        loops_in = {owner[i] for i in g.signals if is_loop[i]}
+        prev = max(before.items(), key=lambda kv: len(kv[0] & loops_in), default=(None, None))
+        j = judge(g, sigs, assessments=assessments or {}, processes=processes or {},
+                  cascades=dict(cascades or {}),
+                  previous=prev[1] if prev[0] and prev[0] & loops_in else None)
+        groups.append(_group(k + 1, g.period * ts, j, unit))
+    return PlantAssessment(tuple(groups), _roles(names, groups), left)
 
 
-@dataclasses.dataclass(frozen=True)
-class _Signals:
-    """Every signal (rows: each loop's OP and PV, then the indicators) and its spectrum."""
-
-    rows: FloatArray
-    spec: Spectra
-    names: list[str]  # the loops, in row order
-    row_of: dict[str, int]  # loop name -> its position in names (its OP is row 2 k)
-    owner: list[str]  # each row's loop or indicator
-    is_loop: list[bool]
-
-
-def _group(number: int, g: RawGroup, sigs: _Signals, *, ts: float,
-           assessments: Mapping[str, Assessment], processes: Mapping[str, str],
-           cascades: dict[str, str]) -> Group:
-    owner, is_loop, spec, signals = sigs.owner, sigs.is_loop, sigs.spec, sigs.rows
-    strength: dict[str, float] = {}
-    kinds: dict[str, str] = {}
-    for i, share in zip(g.signals, g.shares, strict=True):
-        strength[owner[i]] = max(strength.get(owner[i], 0.0), share)
-        kinds[owner[i]] = "loop" if is_loop[i] else "indicator"
-    members = tuple(Member(nm, kinds[nm], strength[nm])
-                    for nm in sorted(strength, key=lambda k: -strength[k]))
-    f0 = 1.0 / g.period
-    evidence = []
-    for m in members:
-        if m.kind != "loop":
-            continue
-        k = sigs.row_of[m.name]  # not names.index: that made a big group quadratic
-        harmonic = max(harmonics(spec, 2 * k, f0, f0 * BAND),
-                       harmonics(spec, 2 * k + 1, f0, f0 * BAND))
-        evidence.append(member_evidence(
-            m.name, signals[2 * k], signals[2 * k + 1], ts=ts, period=g.period,
-            integrating=processes.get(m.name) == "integrating", strength=m.strength,
-            assessment=assessments.get(m.name), harmonic=harmonic))
-    ranking = rank(evidence, cascades)
-    top = ranking[0]
-    period_s = g.period * ts
-    if named_source(top):
-        reason = (f"{top.loop} is the source of the {period_s:.0f} s cycle shared by "
-                  f"{len(evidence)} loops: {top.note()}")
-        also = tuple(e.loop for e in ranking[1:] if named_source(e) and e.loop not in cascades)
-        return Group(number, period_s, members, tuple(ranking), top.loop, reason, also)
-    reason = (f"no loop analysed here is the source of the {period_s:.0f} s cycle shared by "
-              f"{len(evidence)} loops (best candidate {top.loop}: {top.note()}): it enters "
-              "from outside, or from a loop not read")
-    return Group(number, period_s, members, tuple(ranking), None, reason)
+def _group(number: int, period_s: float, j: Judged, unit: str) -> Group:
+    d = j.decision
+    members = tuple(Member(nm, kind, s) for nm, kind, s in j.members)
+    n = sum(1 for m in members if m.kind == "loop")
+    top = j.ranking[0]
+    what = f"the {period_s:.0f} s cycle shared by {n} loops"
+    if d.source is not None:
+        src = next(e for e in j.ranking if e.loop == d.source)
+        reason = f"{d.source} is the source of {what}, named by {', '.join(d.named_by)}: " \
+                 f"{src.note()}"
+        over = [f"{loop}: {why}" for loop, why in d.demoted.items()]
+        if over:
+            reason += "; followers its own tests called stiction: " + "; ".join(over)
+    elif d.outside is not None:
+        ind = next(i for i in j.indicators if i.name == d.outside)
+        nli = "" if ind.nli is None else f", nonlinearity index {ind.nli:.1f}"
+        reason = (f"{what} enters from outside the loops: indicator {d.outside} leads them "
+                  f"(Granger net flow {ind.flow or 0.0:+.2f}{nli}) and no loop's cycle is more "
+                  f"nonlinear (best loop candidate {top.loop}: {top.note()})")
+    else:
+        reason = (f"no loop analysed here shows evidence of being the source of {what} (best "
+                  f"candidate {top.loop}: {top.note()}): its source is not among the loops "
+                  "read, or cannot be told from this data")
+    return Group(number, period_s, members, j.ranking, d.source, reason, d.also, d.named_by,
+                 d.outside, dict(d.demoted), j.indicators, unit)
 
 
 def _roles(names: list[str], groups: list[Group]) -> dict[str, LoopRole]:

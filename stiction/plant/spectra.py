@@ -65,21 +65,29 @@ def _clean(x: FloatArray) -> FloatArray | None:
     return y
 
 
+CHUNK = 256
+"""Signals transformed at once (bounds the transform's temporaries)."""
+
+
 def spectra(signals: FloatArray) -> Spectra:
     """The spectra of the rows of ``signals`` (signals x samples, one time base)."""
     m, n = signals.shape
-    rows = np.zeros((m, n))
-    usable = np.zeros(m, dtype=bool)
-    for i in range(m):
-        y = _clean(signals[i])
-        if y is not None:
-            rows[i] = y / float(np.std(y))
-            usable[i] = True
     freqs = np.fft.rfftfreq(n)
     keep = freqs >= MIN_CYCLES / n  # up to Nyquist: the harmonics of a cycle count too
-    spec = np.fft.rfft(rows * np.hanning(n), axis=1)[:, keep]
-    power = spec.real ** 2 + spec.imag ** 2
+    taper = np.hanning(n)
+    power = np.zeros((m, int(np.count_nonzero(keep))))
+    usable = np.zeros(m, dtype=bool)
+    for lo in range(0, m, CHUNK):
+        rows = np.zeros((min(CHUNK, m - lo), n))
+        for k in range(rows.shape[0]):
+            y = _clean(signals[lo + k])
+            if y is not None:
+                rows[k] = y / float(np.std(y)) * taper
+                usable[lo + k] = True
+        spec = np.fft.rfft(rows, axis=1)[:, keep]
+        power[lo:lo + rows.shape[0]] = spec.real ** 2 + spec.imag ** 2
     total = power.sum(axis=1, keepdims=True)
-    power = np.divide(power, total, out=np.zeros_like(power), where=total > 0)
-    cum = np.concatenate((np.zeros((m, 1)), np.cumsum(power, axis=1)), axis=1)
+    np.divide(power, total, out=power, where=total > 0)
+    cum = np.zeros((m, power.shape[1] + 1))
+    np.cumsum(power, axis=1, out=cum[:, 1:])
     return Spectra(freqs[keep], power, usable, n, cum)

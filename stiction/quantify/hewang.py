@@ -49,7 +49,7 @@ import dataclasses
 import numpy as np
 
 from .._validate import FloatArray
-from ..signal.arrays import median, percentiles
+from ..signal.arrays import mean, median, percentiles
 from ..signal.noise import noise_sd
 from ..signal.segments import closed_rss, ragged, row_chunks
 from ..signal.switching import Switches, find_switches
@@ -83,15 +83,15 @@ class Quantification:
 def _mean(x: FloatArray) -> float:
     """10 %-trimmed mean (as ``scipy.stats.trim_mean``: ``int(TRIM n)`` cut from each end)."""
     if x.size < 5:
-        return float(x.mean())
+        return mean(x)
     cut = int(TRIM * x.size)
-    return float((np.sort(x)[cut : x.size - cut]).mean())
+    return mean(np.sort(x)[cut : x.size - cut])
 
 
 def _overshoot(op: FloatArray, jumps: FloatArray) -> float:
     """Mean excess of the net force over fs at the jumps: the valve only moves at sample
     instants, so a ramping OP passes fs by half an OP step per sample on average."""
-    n = np.clip(np.round(jumps).astype(np.intp), 5, op.size - 1)
+    n = np.minimum(np.maximum(np.rint(jumps).astype(np.intp), 5), op.size - 1)
     win = n[:, None] + np.arange(-5, 1)[None, :]
     seg = op[win]
     t = np.arange(-5, 1) + 2.5
@@ -114,10 +114,10 @@ def _second_steps(
     """
     out = np.full(i.size, np.nan)
     n = j - i
-    ks = np.flatnonzero(n >= 2 * margin + 8)
+    ks = (n >= 2 * margin + 8).nonzero()[0]
     if ks.size == 0:
         return out
-    ks = ks[np.argsort(n[ks], kind="stable")]  # similar lengths together: little padding
+    ks = ks[n[ks].argsort(kind="stable")]  # similar lengths together: little padding
     i, n = i[ks], n[ks]
     for sl in row_chunks(n):
         out[ks[sl]] = _split_rows(y, i[sl], n[sl], tau, margin)
@@ -135,12 +135,12 @@ def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
     h = nf / 2.0
     t = (idx - i[:, None]) - h
     yy = np.where(mask, y[idx], 0.0)
-    yy = np.where(mask, yy - (yy.sum(axis=1) / n)[:, None], 0.0)
+    yy = np.where(mask, yy - (np.add.reduce(yy, axis=1) / n)[:, None], 0.0)
     if tau is None:
-        cols = np.stack((yy, yy * t, yy * yy))
+        cols = np.array((yy, yy * t, yy * yy))
     else:
         # planes g, g^2, y, y g, y^2; the padding is zero in y already, so only g needs the mask
-        g = np.exp(np.clip(-t / tau, -300.0, 300.0))
+        g = np.exp(np.minimum(np.maximum(-t / tau, -300.0), 300.0))
         cols = np.empty((5, *yy.shape))
         np.multiply(g, mask, out=cols[0])
         np.multiply(g, g, out=cols[1])
@@ -153,22 +153,24 @@ def _split_rows(y: FloatArray, i: np.ndarray, n: np.ndarray, tau: float | None,
     # closed-form fit for both
     w_all = idx.shape[1]
     side = np.empty((cols.shape[0], 2, *yy.shape))
-    np.cumsum(cols, axis=2, out=side[:, 0])
-    np.cumsum(cols[..., :0:-1], axis=2, out=side[:, 1, :, w_all - 2 :: -1])
+    cols.cumsum(axis=2, out=side[:, 0])
+    cols[..., :0:-1].cumsum(axis=2, out=side[:, 1, :, w_all - 2 :: -1])
     side[:, 1, :, -1] = 0.0
     width = w_all - 2 * margin
     c = np.arange(margin, margin + width, dtype=np.float64)[None, :]  # split: [0, c), [c, n)
     mc = c < nf - margin
     sums = side[..., margin - 1 : margin - 1 + width]
     one = side[:, 0, :, -1:]  # padding adds zeros: the sums over [0, n)
-    count = np.stack(np.broadcast_arrays(c, nf - c))
+    count = np.empty((2, *yy.shape[:1], width))
+    count[0] = c
+    count[1] = nf - c
     if tau is None:
         t1 = c * ((c - 1.0) / 2.0 - h)  # sum of t over [0, c)
         t2 = (c - 1.0) * c * (2.0 * c - 1.0) / 6.0 - h * (c - 1.0) * c + c * h * h
         t1_all = -h  # over [0, n): n ((n - 1) / 2 - h)
         t2_all = (nf - 1.0) * nf * (2.0 * nf - 1.0) / 6.0 - h * (nf - 1.0) * nf + nf * h * h
-        r, a, b = closed_rss((count, np.stack(np.broadcast_arrays(t1, t1_all - t1)),
-                              np.stack(np.broadcast_arrays(t2, t2_all - t2)), *sums))
+        r, a, b = closed_rss((count, np.array(np.broadcast_arrays(t1, t1_all - t1)),
+                              np.array(np.broadcast_arrays(t2, t2_all - t2)), *sums))
         r_one, _, _ = closed_rss((nf, t1_all, t2_all, *one))
     else:
         r, a, b = closed_rss((count, *sums))
@@ -209,11 +211,11 @@ def quantify(
         return Quantification(reason="the delay puts the valve jumps before the window start",
                               switches=sw)
     u = np.interp(jumps[ok], idx, op)
-    swing = _mean(np.abs(np.diff(u)))
+    swing = _mean(np.abs(u[1:] - u[:-1]))
 
     # jump sizes between consecutive half cycles, PV units (per sample for integrators)
     lev = sw.b if integrating else sw.a
-    dj = np.diff(lev)
+    dj = lev[1:] - lev[:-1]
     warnings: list[str] = []
 
     # multi-jump check: a significant second step the same way inside a half cycle, or two

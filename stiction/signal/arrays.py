@@ -13,6 +13,10 @@ from numpy.typing import NDArray
 
 from .._validate import FloatArray
 
+SORT_BELOW = 700
+"""Values per order statistic below which :func:`order_statistics` sorts instead of
+partitioning."""
+
 
 @functools.lru_cache(maxsize=16)
 def centred_time(n: int) -> tuple[FloatArray, float]:
@@ -52,13 +56,20 @@ def order_statistics(x: NDArray[np.floating[Any]], ks: set[int]) -> dict[int, fl
     introselect whose branches, on data it has not just seen, cost five to seven times as
     much (as ``np.median`` pays for an even count). Largest ``k`` first, each partition on
     the smaller values left of the last one; a ``k`` just below the last one is the maximum
-    of those."""
+    of those.
+
+    On a short array a sort is cheaper still (NumPy sorts with SIMD, and one call replaces
+    a partition and a copy per ``k``): below ``SORT_BELOW`` values per ``k`` (measured: a
+    sort of 3,600 values costs what four or six partitions do, of 751 values a third)."""
+    if x.size < SORT_BELOW * len(ks):
+        s = np.sort(x)
+        return {k: float(s[k]) for k in ks}
     out: dict[int, float] = {}
     head = x
     exact = True  # head holds exactly the head.size smallest values, none used yet
     for k in sorted(ks, reverse=True):
         if exact and k == head.size - 1:
-            out[k] = float(head.max())
+            out[k] = float(np.maximum.reduce(head))
             exact = False
         else:
             part = head.copy()
@@ -84,10 +95,11 @@ def medians(a: NDArray[np.floating[Any]]) -> FloatArray:
     """``np.median(a, axis=-1)`` of an array without NaN (rows not empty): the same values,
     one kth per partition (see :func:`order_statistics`)."""
     h = a.shape[-1] // 2
-    p = np.partition(a, h, axis=-1)
+    p = a.copy()
+    p.partition(h, axis=-1)
     if a.shape[-1] % 2:
         return np.asarray(p[..., h])
-    return np.asarray((p[..., :h].max(axis=-1) + p[..., h]) / 2.0)
+    return np.asarray((np.maximum.reduce(p[..., :h], axis=-1) + p[..., h]) / 2.0)
 
 
 def percentiles(x: NDArray[np.floating[Any]], q: tuple[float, ...]) -> tuple[float, ...]:
@@ -121,14 +133,14 @@ def unit_detrended(x: NDArray[np.floating[Any]], *, name: str, min_samples: int
         return f"record too short to tell: {n} samples"
     if not np.isfinite(x).all():
         return f"{name} has non-finite samples"
-    peak = float(np.abs(x).max())
+    peak = float(np.maximum.reduce(np.abs(x)))
     if peak == 0.0:
         return f"{name} is constant"
     y = x / peak
     t, tt = centred_time(n)
-    y = y - y.mean()
+    y = y - np.add.reduce(y) / n
     y = y - (dot(t, y) / tt) * t
-    span = float(np.abs(y).max())
+    span = float(np.maximum.reduce(np.abs(y)))
     if not span > FLAT:
         return f"{name} is constant"
     return np.asarray(y / span, dtype=np.float64)

@@ -82,7 +82,7 @@ def acf(x: FloatArray) -> FloatArray:
     row for a 2-D ``x`` (one FFT for all rows: pocketfft does two rows in little more than
     the time of one, with the same result)."""
     n = x.shape[-1]
-    y = x - x.mean(axis=-1, keepdims=True)
+    y = x - np.add.reduce(x, axis=-1, keepdims=True) / n
     nfft = fft.next_fast_len(2 * n, real=True)
     f = fft.rfft(y, nfft, axis=-1)
     r = fft.irfft(f.real**2 + f.imag**2, nfft, axis=-1)[..., :n]
@@ -102,7 +102,7 @@ def detect_oscillations(xs: Sequence[FloatArray], *, min_regularity: float = 1.0
     allocator's heap: fresh pages from the OS at every call)."""
     out: list[Oscillation] = []
     for i in range(0, len(xs), 2):
-        r = acf(np.stack([detrend(x) for x in xs[i : i + 2]]))
+        r = acf(np.array([detrend(x) for x in xs[i : i + 2]]))
         out.extend(_from_acf(row, min_regularity) for row in r)
     return out
 
@@ -131,7 +131,7 @@ def _from_acf(r: FloatArray, min_regularity: float) -> Oscillation:
                            f"no regular oscillation: ACF zero crossings irregular "
                            f"(regularity {reg:.2f} <= {min_regularity:g})")
     lobe = seg[int(np.ceil(z[1])) - 1 : int(np.floor(z[2]))]
-    height = float(np.abs(lobe).max()) * math.sqrt(n) if lobe.size else 0.0
+    height = float(np.maximum.reduce(np.abs(lobe))) * math.sqrt(n) if lobe.size else 0.0
     if height < SIGNIFICANCE:
         return Oscillation(False, None, reg,
                            f"no significant oscillation: the ACF one period out is "

@@ -81,7 +81,7 @@ def closed_rss(s: FloatArray | tuple[FloatArray, ...]) -> tuple[FloatArray, Floa
 def ragged(starts: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Index matrix ``(K, max(lengths))`` of the intervals ``[starts[k], starts[k] +
     lengths[k])`` and the mask of its valid entries (padding repeats ``starts[k]``)."""
-    width = max(int(lengths.max()), 1) if lengths.size else 1
+    width = max(int(np.maximum.reduce(lengths)), 1) if lengths.size else 1
     off = np.arange(width)
     mask = off[None, :] < lengths[:, None]
     return starts[:, None] + np.where(mask, off[None, :], 0), mask
@@ -93,6 +93,8 @@ def row_chunks(lengths: np.ndarray, budget: int = CHUNK) -> list[slice]:
     working set in cache: one matrix for the whole window made long windows superlinear."""
     out: list[slice] = []
     start, n = 0, lengths.size
+    if n and int(np.maximum.reduce(lengths)) * n <= budget:  # the common case: one chunk
+        return [slice(0, n)]
     while start < n:
         # a chunk's size with each further row: nondecreasing, so a binary search
         size = np.maximum.accumulate(lengths[start:]) * np.arange(1, n - start + 1)

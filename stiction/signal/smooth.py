@@ -71,7 +71,7 @@ def _gcv_s(dct_y: FloatArray, near: float | None = None) -> float:
         centre = int(coarse[int(_gcv(y2, coarse).argmin())])
         idx = np.arange(max(0, centre - _COARSE + 1), min(_LAST, centre + _COARSE - 1) + 1)
     else:
-        idx = np.flatnonzero(np.abs(_LOG_S_GRID - math.log10(near)) <= 2.0)
+        idx = (np.abs(_LOG_S_GRID - math.log10(near)) <= 2.0).nonzero()[0]
         if idx.size < 3:
             idx = np.arange(_LAST + 1)
     g = _gcv(y2, idx)
@@ -89,7 +89,7 @@ def _gcv_s(dct_y: FloatArray, near: float | None = None) -> float:
         g0, g1, g2 = float(g[i - 1]), float(g[i]), float(g[i + 1])
         den = g0 - 2.0 * g1 + g2
         if den > 0:
-            x += _STEP * float(np.clip(0.5 * (g0 - g2) / den, -0.5, 0.5))
+            x += _STEP * min(max(0.5 * (g0 - g2) / den, -0.5), 0.5)
     return float(10.0**x)
 
 
@@ -109,7 +109,7 @@ def _gcv(y2: FloatArray, grid: np.ndarray) -> FloatArray:
     rss = np.zeros(grid.size)
     for k in range(0, n, cols):
         q = table[grid, k : k + cols]
-        sum_q += q.sum(axis=1)
+        sum_q += np.add.reduce(q, axis=1)
         np.multiply(q, q, out=q)
         rss += np.einsum("gk,k->g", q, y2[k : k + cols])
     return np.asarray(rss / n / np.maximum(sum_q / n, 1e-12) ** 2)

@@ -70,7 +70,7 @@ def _extrema(z: FloatArray, period: float) -> np.ndarray:
     vl, _ = signal.find_peaks(-z, prominence=PROMINENCE * span, distance=dist)
     idx = np.concatenate((pk, vl))
     kind = np.concatenate((np.ones(pk.size), -np.ones(vl.size)))
-    order = np.argsort(idx)
+    order = idx.argsort()
     idx, kind = idx[order], kind[order]
     # keep alternation: of two neighbours of one kind keep the more extreme
     keep_idx: list[int] = []
@@ -94,13 +94,14 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
     nb = x.size // m
     if nb < 8:
         return np.empty(0, dtype=np.intp)
-    z, _ = smooth(x[: nb * m].reshape(nb, m).mean(axis=1), robust=True, robust_steps=1)
+    z, _ = smooth(np.add.reduce(x[: nb * m].reshape(nb, m), axis=1) / m, robust=True,
+                  robust_steps=1)
     ext = _extrema(z, period / m)
     if ext.size == 0:
         return np.empty(0, dtype=np.intp)
     # per extremum: the stretch to the next one (the last: to the window end), the swing of
     # that stretch (the last: the swing before it), and which way PV leaves
-    nxt = np.append(ext[1:], nb - 1)
+    nxt = np.concatenate((ext[1:], [nb - 1]))
     ze, zn = z[ext], z[nxt]
     swing = np.abs(ze - zn)
     swing[-1] = abs(float(ze[-1] - z[ext[-2] if ext.size > 1 else ext[-1]]))
@@ -114,16 +115,22 @@ def departures(x: FloatArray, period: float) -> np.ndarray:
     return np.asarray((ext + pos)[keep] * m + m // 2, dtype=np.intp)
 
 
+def _decay(t: FloatArray, tau: float) -> FloatArray:
+    """``exp(-t / tau)``, the exponent clipped to [-50, 700]: the decaying basis a time ``t``
+    after its reference (before it, the basis grows)."""
+    return np.asarray(np.exp(-np.minimum(np.maximum(t / tau, -50.0), 700.0)))
+
+
 def _interval_sums(y: FloatArray, i: np.ndarray, j: np.ndarray, refs: FloatArray,
                    tau: float | None) -> FloatArray:
     """Sums (n, Sg, Sgg, Sy, Syg, Syy) of ``y ~ a + b g(t - refs[k])`` over each nonempty
     ``[i[k], j[k])``, as a (6, K) array: one flat pass, no padding."""
     lengths = j - i
-    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    starts = np.concatenate(([0], lengths.cumsum()[:-1]))
     seg = np.repeat(np.arange(i.size), lengths)
     idx = np.arange(int(lengths.sum())) + (i - starts)[seg]
     t_rel = idx - refs[seg]
-    g = t_rel if tau is None else np.exp(-np.clip(t_rel / tau, -50.0, 700.0))
+    g = t_rel if tau is None else _decay(t_rel, tau)
     yy = y[idx]
     out = np.empty((6, i.size))
     out[0] = lengths
@@ -144,10 +151,19 @@ def _segment_sums(
 def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float) -> float:
     """Common time constant (samples) of the exponentials of all half cycles."""
     lengths = bounds[:, 1] - bounds[:, 0]
-    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    starts = np.concatenate(([0], lengths.cumsum()[:-1]))
     seg_id = np.repeat(np.arange(lengths.size), lengths)
     idx = np.arange(int(lengths.sum())) + (bounds[:, 0] - starts)[seg_id]
     neg_t = -(idx - refs[seg_id])
+    # references on whole samples (the first call's): the times are whole samples, a few
+    # hundred distinct ones, and each evaluation takes their exponentials once (the same
+    # numbers: exp of the same floats) and gathers them
+    whole = refs.astype(np.intp)
+    table: tuple[FloatArray, np.ndarray] | None = None
+    if np.array_equal(whole, refs):
+        t_int = idx - whole[seg_id]
+        lo = int(t_int.min())
+        table = -np.arange(lo, int(t_int.max()) + 1, dtype=np.float64), t_int - lo
     yy = y[idx]
     n_k = lengths.astype(np.float64)
     sy = np.add.reduceat(yy, starts)
@@ -160,8 +176,11 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
     g, gg, yg = planes
 
     def total(log_tau: float) -> float:
-        np.divide(neg_t, math.exp(log_tau), out=g)
-        np.exp(g, out=g)
+        if table is None:
+            np.divide(neg_t, math.exp(log_tau), out=g)
+            np.exp(g, out=g)
+        else:
+            g[:] = np.exp(table[0] / math.exp(log_tau))[table[1]]
         np.multiply(g, g, out=gg)
         np.multiply(yy, g, out=yg)
         sg, sgg, syg = np.add.reduceat(planes, starts, axis=1)
@@ -173,7 +192,7 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
         # jump) must not drag the time constant
         per = (syy - fit) / n_k
         per.sort()
-        return float(per[:keep].sum())
+        return float(np.add.reduce(per[:keep]))
 
     log_tau = fminbound(total, math.log(0.2), math.log(20.0 * period), xtol=1e-3)
     return math.exp(log_tau)
@@ -182,7 +201,7 @@ def _fit_tau(y: FloatArray, bounds: np.ndarray, refs: FloatArray, period: float)
 def _basis(t: FloatArray, t0: FloatArray, tau: float | None) -> FloatArray:
     """The varying column of :func:`exp_basis` for a matrix of times, one reference per row."""
     d = t - t0[:, None]
-    return d if tau is None else np.exp(-np.clip(d / tau, -50.0, 700.0))
+    return d if tau is None else _decay(d, tau)
 
 
 def _refine(
@@ -196,7 +215,7 @@ def _refine(
     (padding adds zeros to every sum)."""
     n = y.size
     out = onsets.astype(np.float64).copy()
-    c = np.round(onsets).astype(np.intp)
+    c = np.rint(onsets).astype(np.intp)
     if c.size == 0:
         return out
     lo = np.empty_like(c)
@@ -207,7 +226,7 @@ def _refine(
     hi[-1] = min(n, int(c[-1]) + 3 * reach)
     c_lo = np.maximum(lo + 3, c - reach)
     c_hi = np.minimum(hi - 3, c + reach)
-    ks = np.flatnonzero(c_hi > c_lo)
+    ks = (c_hi > c_lo).nonzero()[0]
     if ks.size == 0:
         return out
     lo, hi, c_lo, c_hi = lo[ks], hi[ks], c_lo[ks], c_hi[ks]
@@ -240,11 +259,12 @@ def _refine_rows(y: FloatArray, ends: tuple[np.ndarray, ...],
     t = cand.astype(np.float64)
     # planes g, g^2, y, y g, y^2 of the candidates (padding zero); the counts need no sums
     g = _basis(np.concatenate((t, t)), both, tau)
-    m2 = np.tile(mc, (2, 1))
+    m2 = np.concatenate((mc, mc))
     part = np.empty((5, *g.shape))
     np.multiply(g, m2, out=part[0])
     np.multiply(part[0], part[0], out=part[1])
-    np.multiply(np.tile(y[cand], (2, 1)), m2, out=part[2])
+    np.multiply(y[cand], mc, out=part[2, :k])
+    part[2, k:] = part[2, :k]
     np.multiply(part[2], g, out=part[3])
     np.multiply(part[2], part[2], out=part[4])
     sums = np.empty((6, *g.shape))
@@ -252,8 +272,8 @@ def _refine_rows(y: FloatArray, ends: tuple[np.ndarray, ...],
     sums[0, :k] = np.minimum(col[None, :], lengths[:, None])
     sums[0, k:] = np.maximum(lengths[:, None] - col[None, :], 0)
     sums[1:, :k, 0] = 0.0
-    np.cumsum(part[:, :k, :-1], axis=2, out=sums[1:, :k, 1:])  # left: over [c_lo, c)
-    np.cumsum(part[:, k:, ::-1], axis=2, out=sums[1:, k:, ::-1])  # right: over [c, c_hi)
+    part[:, :k, :-1].cumsum(axis=2, out=sums[1:, :k, 1:])  # left: over [c_lo, c)
+    part[:, k:, ::-1].cumsum(axis=2, out=sums[1:, k:, ::-1])  # right: over [c, c_hi)
     sums += bulk[..., None]
     r, a, b = closed_rss(sums)
     best = np.where(mc, r[:k] + r[k:], np.inf).argmin(axis=1)
@@ -279,8 +299,7 @@ def _meet(left: tuple[FloatArray, FloatArray, FloatArray],
         ok = big_b != 0
         step = -big_a / np.where(ok, big_b, 1.0)
     else:
-        big_b = (b_l * np.exp(-np.clip((near - ref_l) / tau, -50.0, 700.0))
-                 - b_r * np.exp(-np.clip((near - ref_r) / tau, -50.0, 700.0)))
+        big_b = b_l * _decay(near - ref_l, tau) - b_r * _decay(near - ref_r, tau)
         ratio = (a_r - a_l) / np.where(big_b != 0, big_b, 1.0)
         ok = (big_b != 0) & (ratio > 0)
         step = -tau * np.log(np.where(ok, ratio, 1.0))
@@ -299,7 +318,7 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     guard = max(2, round(0.02 * period))
     tau: float | None = None
     if not integrating:
-        bounds = np.column_stack((kinks[:-1] + guard, kinks[1:] - guard))
+        bounds = np.array((kinks[:-1] + guard, kinks[1:] - guard)).T
         bounds = bounds[bounds[:, 1] - bounds[:, 0] >= 6]
         if bounds.shape[0] == 0:
             return None
@@ -308,7 +327,7 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
                      guard=guard)
     if not integrating:
         c = np.floor(onsets).astype(np.intp)
-        bounds = np.column_stack((c[:-1] + 2, c[1:]))
+        bounds = np.array((c[:-1] + 2, c[1:])).T
         ok = bounds[:, 1] - bounds[:, 0] >= 6
         if ok.any():
             tau = _fit_tau(y, bounds[ok], onsets[:-1][ok], period)
@@ -316,11 +335,11 @@ def find_switches(pv: FloatArray, period: float, *, integrating: bool) -> Switch
     # refining moves each onset on its own; two that cross (a fast ringing cycle whose
     # fitted curves meet out of order) would give a half cycle of negative length
     onsets = np.sort(onsets)
-    onsets = onsets[np.concatenate(([True], np.diff(onsets) >= 1.0))]
+    onsets = onsets[np.concatenate(([True], onsets[1:] - onsets[:-1] >= 1.0))]
     if onsets.size < 3:
         return None
     c = np.floor(onsets).astype(np.intp)
-    bounds = np.column_stack((c[:-1] + 1, c[1:] + 1))
+    bounds = np.array((c[:-1] + 1, c[1:] + 1)).T
     a, b, r, cnt = _segment_sums(y, bounds, onsets[:-1], tau)
     return Switches(onsets, a * scale + centre, b * scale, r * scale * scale, cnt, tau)
 

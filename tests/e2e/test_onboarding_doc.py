@@ -133,7 +133,8 @@ def test_the_real_time_expectations_are_measured_and_follow_from_the_config() ->
     1 h 55 min). The page gives per loop what it reads when, measured by `python -m bench
     onboarding`, and the wait the config alone implies."""
     from gateway.config.model import GatewaySettings, LoopConfig  # noqa: PLC0415
-    from gateway.core.jobs import FULL_WINDOW, _duration  # noqa: PLC0415
+    from gateway.core.jobs import FULL_WINDOW  # noqa: PLC0415
+    from stiction.diagnosis.enough import duration as _duration  # noqa: PLC0415
 
     text = " ".join(DOC.read_text().split())
     assert "After a few analysis rounds" not in text
@@ -147,3 +148,4 @@ def test_the_real_time_expectations_are_measured_and_follow_from_the_config() ->
     assert f"({_duration(FULL_WINDOW * window)} of a {_duration(window)} window)" in text
     wait = window - interval  # what the first round's warming-up line says it waits
     assert f"waiting up to {_duration(wait)} for the full window" in text
+    assert f"calm only when full in {_duration(wait)}" in text  # the reason while too short

@@ -16,7 +16,7 @@ from prometheus_client import CollectorRegistry, generate_latest
 from result_fixtures import sample_store
 
 from gateway.config import parse_config
-from gateway.core.plant import PlantGroup, PlantView
+from gateway.core.plantview import PlantGroup, PlantView
 from gateway.core.store import ResultStore
 from gateway.outputs.base import Binding
 from gateway.outputs.prometheus import GatewayMetrics, PrometheusSink, StoreCollector

@@ -19,7 +19,7 @@ from deploy_support import require_tool
 from gateway_helpers import run
 
 from gateway.config import load_config, parse_config
-from gateway.core.plant import PlantGroup, PlantView
+from gateway.core.plantview import PlantGroup, PlantView
 from gateway.outputs.modbus_server.resultmap import COLUMNS, READ_WITH, layout_markdown, map_rows
 from gateway.runtime.gateway import Gateway
 from gateway.wire.results import LAYOUT, VERDICT_CODES, block_values

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gateway.config import load_config, parse_config
-from gateway.core.plant import PlantGroup, PlantView
+from gateway.core.plantview import PlantGroup, PlantView
 from gateway.core.store import ResultStore
 from gateway.errors import ConfigError
 from plcsim import gateway_config as sim_gateway_config
@@ -56,6 +56,13 @@ def test_a_plant_scenario_is_served_after_the_loops_and_read_by_its_gateway_conf
     lic = next(lp for lp in gw["loops"] if lp["name"] == "U2.LIC301")
     assert lic["op"] == {"address": 12, "type": "float32"}
     assert lic["process"] == "integrating" and lic["result_address"] == 60
+    # the plant's loops are one plant unit (issue 29): the plant view keeps them apart from
+    # the single loops beside them, whatever their periods
+    assert {lp["name"]: lp.get("unit") for lp in gw["loops"]} == {
+        "FIC101": None, **{f"U2.{n}": "U2" for n in ("FIC101", "TIC201", "LIC301", "PIC401",
+                                                     "FIC102")}}
+    named = parse_sim_config({"plants": [{"plant": "two-sources", "unit": "area 7"}]})
+    assert {lp.get("unit") for lp in sim_gateway_config(named)["loops"]} == {"area 7"}
     sim = PlcSim(cfg)
     first = sim.op[1:].copy()
     for _ in range(600):  # the precomputed 600 s, then replayed from the start

@@ -15,14 +15,15 @@ import numpy as np
 import pytest
 import yaml
 from memory_harness import mconfig, mloop
-from plant_fixtures import plant_records
+from plant_fixtures import loop_group, plant_records
 
 from gateway.cli import main
-from gateway.config import LoopConfig, PlantSettings, PointConfig, load_config, parse_config
-from gateway.core.plant import PlantGroup, PlantTracker, PlantView, plant_jobs
+from gateway.config import PlantSettings, load_config, parse_config
+from gateway.core.plant import PlantTracker, plant_jobs
+from gateway.core.plantview import PlantGroup, PlantView
 from gateway.core.points import Quality
 from gateway.core.store import ResultStore
-from gateway.core.windows import LoopGroup, WindowBank, load_columns
+from gateway.core.windows import LoopGroup
 from gateway.errors import ConfigError
 from gateway.inputs.memory import memory_device
 from gateway.runtime.gateway import Gateway
@@ -34,21 +35,7 @@ from stiction.plant import Group, LoopRole, Member, PlantAssessment
 SUSPICIOUS = "plant_fake_analyze:analyze"
 
 
-def _group(rec_loops: dict[str, tuple[np.ndarray, np.ndarray]], ts: float,
-           processes: dict[str, str], device: str = "plc", *, first_row: int = 0,
-           size: int | None = None) -> LoopGroup:
-    names = list(rec_loops)
-    n = len(next(iter(rec_loops.values()))[0])
-    bank = WindowBank(names, size or n)
-    q = np.full(n, Quality.GOOD, dtype=np.uint8)
-    load_columns(bank, np.arange(n, dtype=np.float64) * ts,
-                 {c: (op.astype(np.float32), pv.astype(np.float32), q)
-                  for c, (op, pv) in enumerate(rec_loops.values())})
-    configs = tuple(LoopConfig(nm, device, PointConfig(None), PointConfig(None), 20 * k,
-                               process=processes.get(nm, "self-regulating"))
-                    for k, nm in enumerate(names))
-    cols = np.arange(len(names), dtype=np.intp)
-    return LoopGroup(device, bank, configs, cols, cols, cols + first_row, ts)
+_group = loop_group  # (tests/support/plant_fixtures.py)
 
 
 def _round(groups: list[LoopGroup], store: ResultStore, analyze: str,
@@ -142,8 +129,9 @@ def test_groups_keep_their_number_and_each_change_is_one_line() -> None:
     assert sorted(events) == sorted([
         "plant group 1: source B (was A), period 155 s, 2 loops",
         "plant group 3 appeared: period 40 s, source X, 2 loops: X, Y",
-        "plant group 2 ended (period 600 s, source none among the loops (from outside), "
-        "2 loops)"])
+        "plant group 2 ended (period 600 s, source none among the loops, 2 loops)"])
+    assert view.changes["group_appeared"] == 3 and view.changes["group_ended"] == 1
+    assert view.changes["source"] == 1
     view, events = t.update([(_pa((155.0, "B", ("A", "B"))), ())])
     assert events == ["plant group 3 ended (period 40 s, source X, 2 loops)"]
     view, events = t.update([(_pa((155.0, "B", ("A", "B")), (90.0, "Q", ("Q", "R"))), ())])
@@ -167,7 +155,10 @@ def test_a_job_holds_one_time_base_averaged_down() -> None:
     j = jobs[1]
     assert j.op.shape == (4, 1000) and j.op.dtype == np.float32
     np.testing.assert_allclose(j.op[0], sig["A0"][0].reshape(-1, 3).mean(axis=1), atol=1e-6)
-    assert np.isnan(j.op[3, -4:]).all() and np.isfinite(j.op[3, :-4]).all()  # gaps: NaN
+    # the newest 10 samples bad: the last three blocks of three are gaps; the block before
+    # holds one bad sample and is the mean of its two good ones
+    assert np.isnan(j.op[3, -3:]).all() and np.isfinite(j.op[3, :-3]).all()
+    assert j.op[3, -4] == pytest.approx(float(sig["A0"][0][-12:-10].mean()), abs=1e-6)
     assert j.rows == (0, 1, 2, 3) and jobs[2].rows == (4, 5)
     # loops not assessed this round take no part; a time base with one loop has no job
     assert plant_jobs([a, b], {0: ok, 3: ok}, max_samples=5000)[0].names == ("A0", "B0")

@@ -7,6 +7,11 @@ import datetime as dt
 import functools
 from pathlib import Path
 
+import numpy as np
+
+from gateway.config import LoopConfig, PointConfig
+from gateway.core.points import Quality
+from gateway.core.windows import LoopGroup, WindowBank, load_columns
 from stiction.scenarios.plant import PlantRecord, simulate_plants
 from stiction.scenarios.plants import NAMED_PLANTS
 
@@ -36,3 +41,24 @@ def write_wide_export(path: Path, rec: PlantRecord, *, names: dict[str, str] | N
             cells += [f"{rec.indicators[k][i]:.4f}".replace(".", ",") for k in rec.indicators]
             fh.write(";".join(cells) + "\n")
     return path
+
+
+def loop_group(loops: dict[str, tuple[np.ndarray, np.ndarray]], ts: float,
+               processes: dict[str, str], device: str = "plc", *, first_row: int = 0,
+               size: int | None = None, units: dict[str, str] | None = None,
+               t0: float = 0.0) -> LoopGroup:
+    """One device's loop group holding ``loops`` (name -> OP, PV) as full windows, every
+    sample GOOD, the first at process time ``t0``; ``units``: each loop's plant unit."""
+    names = list(loops)
+    n = len(next(iter(loops.values()))[0])
+    bank = WindowBank(names, size or n)
+    q = np.full(n, Quality.GOOD, dtype=np.uint8)
+    load_columns(bank, t0 + np.arange(n, dtype=np.float64) * ts,
+                 {c: (op.astype(np.float32), pv.astype(np.float32), q)
+                  for c, (op, pv) in enumerate(loops.values())})
+    configs = tuple(LoopConfig(nm, device, PointConfig(None), PointConfig(None), 20 * k,
+                               process=processes.get(nm, "self-regulating"),
+                               unit=(units or {}).get(nm, ""))
+                    for k, nm in enumerate(names))
+    cols = np.arange(len(names), dtype=np.intp)
+    return LoopGroup(device, bank, configs, cols, cols, cols + first_row, ts)

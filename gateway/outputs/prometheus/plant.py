@@ -6,15 +6,22 @@ result store's plant view at scrape time; the per-loop group and role are in
 ``stiction_plant_group_loops{group, source}``: ``group`` is the group's number (as in the
 result registers), ``source`` its source loop, empty when no loop read is the source (the
 cycle enters from outside). A group that ends vanishes.
+
+``stiction_plant_changes_total{change}``: the plant view's changes published since the
+gateway started (``group_appeared``, ``group_ended``, ``source``, ``role``: a loop became or
+stopped being a source or a follower) and ``held``: analysis rounds in which a changed view
+was held back because it had not yet held for ``plant.hold_rounds`` rounds
+(:mod:`gateway.core.planthold`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 
-from prometheus_client.core import GaugeMetricFamily, Metric
+from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 
+from ...core.plantview import CHANGES
 from ...core.store import ResultStore
 
 __all__ = ["PlantCollector"]
@@ -43,3 +50,12 @@ class PlantCollector(Collector):
             loops.add_metric(labels, float(len(g.loops)))
         yield period
         yield loops
+        changes = CounterMetricFamily(
+            "stiction_plant_changes",
+            "Plant-view changes published (group_appeared, group_ended, source, role) and "
+            "rounds a change was held back (held), since the gateway started.",
+            labels=["change"])
+        counts = st.plant.changes if st is not None else {}
+        for change in CHANGES:
+            changes.add_metric([change], float(counts.get(change, 0)))
+        yield changes

@@ -10,7 +10,7 @@ import numpy as np
 from scipy import signal
 
 from ..._validate import FloatArray
-from ...signal.arrays import dot, median
+from ...signal.arrays import dot, mean, median
 
 __all__ = [
     "PRODUCT_SIZE",
@@ -53,17 +53,15 @@ class Target:
         ok = jj < m
         jc = np.minimum(jj, m - 1)
         cross = np.concatenate((np.where(ok, v[jc], 0.0), np.where(ok, t[jc], 0.0)), axis=1)
-        cv = np.concatenate(([0.0], np.cumsum(v[::-1])))  # suffix sums: sum over [d, m)
-        ct = np.concatenate(([0.0], np.cumsum(t[::-1])))
-        ctt = np.concatenate(([0.0], np.cumsum((t * t)[::-1])))
-        cvt = np.concatenate(([0.0], np.cumsum((v * t)[::-1])))
-        cvv = np.concatenate(([0.0], np.cumsum((v * v)[::-1])))
+        # suffix sums of v, t, t^2, v t and v^2 (column d: the sum over [m - d, m)), in one pass
+        suffix = np.zeros((5, m + 1))
+        np.array((v, t, t * t, v * t, v * v))[:, ::-1].cumsum(axis=1, out=suffix[:, 1:])
         k = m - lags
         n = k.astype(np.float64)
-        st, stt, sv, svt = ct[k], ctt[k], cv[k], cvt[k]
+        sv, st, stt, svt, svv = suffix[:, k]
         det = n * stt - st * st
         det = np.where(det > 0, det, 1.0)
-        svv_c = cvv[k] - _proj((n, st, stt, det), sv, svt, sv, svt)
+        svv_c = svv - _proj((n, st, stt, det), sv, svt, sv, svt)
         return cls(lags, cross, n, st, stt, sv, svt, det, svv_c, np.where(svv_c > 0, svv_c, 1.0))
 
     def proj(self, a1: FloatArray, at: FloatArray, b1: FloatArray, bt: FloatArray) -> FloatArray:
@@ -74,18 +72,16 @@ class Target:
         """Residual share of variance and gain of ``target ~ g y(t - lag) + c + b t`` for each
         row of ``y`` and each lag: arrays (rows, lags)."""
         m = y.shape[1]
-        k = m - self.lags
         # sums over [0, m - lag): the whole row less a short tail
-        width = int(self.lags.max()) if self.lags.size else 0
-        tail = y[:, m - width :]
+        width = int(np.maximum.reduce(self.lags)) if self.lags.size else 0
         y2 = y * y
-        t1 = np.concatenate((np.cumsum(tail[:, ::-1], axis=1)[:, ::-1], np.zeros((y.shape[0], 1))),
-                            axis=1)
-        t2 = np.concatenate((np.cumsum(y2[:, m - width :][:, ::-1], axis=1)[:, ::-1],
-                             np.zeros((y.shape[0], 1))), axis=1)
-        pos = k - (m - width)
-        sy = y.sum(axis=1)[:, None] - t1[:, pos]
-        syy = y2.sum(axis=1)[:, None] - t2[:, pos]
+        # the tails' sums of y and y^2 (column d: the last d samples), in one pass
+        tails = np.zeros((2, y.shape[0], width + 1))
+        np.array((y[:, m - width :], y2[:, m - width :]))[..., ::-1].cumsum(
+            axis=2, out=tails[..., 1:])
+        tail = tails[..., self.lags]
+        sy = np.add.reduce(y, axis=1)[:, None] - tail[0]
+        syy = np.add.reduce(y2, axis=1)[:, None] - tail[1]
         c = _product(y, self.cross)
         nl = self.lags.size
         syv, syt = c[:, :nl], c[:, nl:]
@@ -161,16 +157,18 @@ def period_spread(target: FloatArray, ys: FloatArray, share: FloatArray, mask: n
     relative improvements (-inf when either fit is missing)."""
     st = np.where(mask[:, 1:], share[:, 1:], np.inf)
     li = np.where(mask[:, :1], share[:, :1], np.inf)
-    if not (np.isfinite(st.min()) and np.isfinite(li.min())):
+    if not (math.isfinite(np.minimum.reduce(st, axis=None))
+            and math.isfinite(np.minimum.reduce(li, axis=None))):
         return -math.inf
     i = np.unravel_index(int(st.argmin()), st.shape)
     j = np.unravel_index(int(li.argmin()), li.shape)
-    start = int(lags.max())
+    start = int(np.maximum.reduce(lags))
     m = target.size
     v = target[start:]
     nb = max(1, round(v.size / per))
     edges = np.linspace(0, v.size, nb + 1).astype(np.intp)[:-1]
-    cnt = np.diff(np.append(edges, v.size)).astype(np.float64)
+    ends = np.concatenate((edges[1:], [v.size]))
+    cnt = (ends - edges).astype(np.float64)
     sv, svv = np.add.reduceat(v, edges), np.add.reduceat(v * v, edges)
     vvc = svv - sv * sv / cnt
 
@@ -187,7 +185,7 @@ def period_spread(target: FloatArray, ys: FloatArray, share: FloatArray, mask: n
     lag_s = int(lags[i[2]])
     shifted = np.lib.stride_tricks.sliding_window_view(ys[j[0]][0], v.size)[start - lags]
     r = rss(np.vstack((ys[i[0]][i[1] + 1][start - lag_s : m - lag_s], shifted)))
-    r_st, r_li = r[0], r[1:].min(axis=0)
+    r_st, r_li = r[0], np.minimum.reduce(r[1:], axis=0)
     ok = r_li > 0
     if not ok.any():
         return -math.inf
@@ -197,11 +195,11 @@ def period_spread(target: FloatArray, ys: FloatArray, share: FloatArray, mask: n
 def _fit_residual(y: FloatArray, v: FloatArray, t: FloatArray) -> FloatArray:
     """Residual of ``v ~ g y + c + b t`` by least squares (y and t first made orthogonal
     to the constant and to each other: three small sums, no LAPACK call)."""
-    tc = t - t.mean()
-    vc = v - v.mean()
+    tc = t - mean(t)
+    vc = v - mean(v)
     stt = float(dot(tc, tc))
     bt = float(dot(vc, tc)) / stt if stt > 0 else 0.0
-    yc = y - y.mean()
+    yc = y - mean(y)
     yt = float(dot(yc, tc)) / stt if stt > 0 else 0.0
     yc = yc - yt * tc
     vc = vc - bt * tc
@@ -215,7 +213,7 @@ def effective_n(target: Target, y: FloatArray, lag: int) -> float:
     m = y.shape[1]
     yy = y[0, : m - lag]
     t = np.arange(lag, m, dtype=np.float64)
-    vv = target.cross[: m - lag, int(np.flatnonzero(target.lags == lag)[0])]
+    vv = target.cross[: m - lag, int((target.lags == lag).nonzero()[0][0])]
     r = _fit_residual(yy, vv, t)
     den = float(dot(r, r))
     rho = float(dot(r[1:], r[:-1])) / den if den > 0 else 0.0

@@ -12,7 +12,7 @@ import numpy as np
 from ..._assessment import Evidence
 from ..._errors import ParameterError
 from ..._validate import FloatArray
-from ...signal.arrays import dot, percentiles
+from ...signal.arrays import dot, mean, percentiles
 from ...signal.noise import noise_sd
 from ...signal.oscillation import detect_oscillation
 from .least_squares import (
@@ -211,7 +211,7 @@ def _prepare(op: FloatArray, pv: FloatArray, p: float | None, integrating: bool
     u, v, piv = u[c0:], v[c0:], piv[1:] - c0
     swing = median_swing(u, piv)
     if integrating:
-        v = np.diff(v)
+        v = v[1:] - v[:-1]
     lags = DEAD_GRID[v.size // 4 > DEAD_GRID]
     target = Target.build(v, lags)
     if not (target.svv_c > 0).all():
@@ -239,7 +239,7 @@ class _Coarse:
 
 def _coarse(w: _Prepared, integrating: bool) -> _Coarse:
     s_band = np.repeat(S_GRID * w.swing, J_GRID.size)
-    jump = s_band * np.tile(J_GRID, S_GRID.size)
+    jump = s_band * np.concatenate([J_GRID] * S_GRID.size)
     keep = s_band > w.h
     s_band, jump = s_band[keep], jump[keep]
     # row 0 is the linear valve: a band of 0 belongs to the sticky family too
@@ -250,11 +250,12 @@ def _coarse(w: _Prepared, integrating: bool) -> _Coarse:
     # increments: only the process path counts there (the controller's proportional kick
     # is an instantaneous relation of either sign in OP's and PV's increments)
     dlags = w.lags[w.lags <= STICKY_MAX_LAG]
-    dtarget = Target.build(np.diff(w.v), dlags)
-    dshare, dgain = fit_rows(dtarget, np.diff(ys, axis=2))
+    dtarget = Target.build(w.v[1:] - w.v[:-1], dlags)
+    dshare, dgain = fit_rows(dtarget, ys[..., 1:] - ys[..., :-1])
     proc = process_path(gain, w.lags, w.sigma)
     dproc = process_path(dgain, dlags, w.sigma)
-    lin_w, lin_c = float(share[:, 0].min()), masked_min(share[:, :1], proc[:, :1])
+    lin_w = float(np.minimum.reduce(share[:, 0], axis=None))
+    lin_c = masked_min(share[:, :1], proc[:, :1])
     dlin_c = masked_min(dshare[:, :1], dproc[:, :1])
     dst = masked_min(dshare, dproc)
     spread = period_spread(w.v, ys, share, proc, lags=w.lags, per=w.per, sigma=w.sigma)
@@ -312,7 +313,7 @@ def _refine(w: _Prepared, c: _Coarse, b: _Best, integrating: bool) -> _Best:
     plus = w.sigma != 0 and c.increments >= IMPROVE_YES and c.spread >= SPREAD_YES
     if plus:
         s2 = np.repeat(c.s_band[b.ci] * S_REFINE, J_REFINE.size)
-        j2 = np.tile(c.jump[b.ci] * J_REFINE, S_REFINE.size)
+        j2 = np.concatenate([c.jump[b.ci] * J_REFINE] * S_REFINE.size)
         ok2 = s2 > w.h
         s2, j2 = s2[ok2], j2[ok2]
         taus2, taus_lin = ((c.taus, c.taus) if integrating else
@@ -373,9 +374,9 @@ def controller_sign(u: FloatArray, y: FloatArray, period: float) -> float:
     if u.size < 4 * lag:
         return 0.0
     du = u[lag:] - u[:-lag]
-    cy = np.concatenate(([0.0], np.cumsum(y - y.mean())))
+    cy = np.concatenate(([0.0], (y - mean(y)).cumsum()))
     my = (cy[lag + 1 :] - cy[1:-lag]) / lag  # mean PV over (t - lag, t]
-    c = float(dot(du - du.mean(), my))
+    c = float(dot(du - mean(du), my))
     return 0.0 if c == 0 else (-1.0 if c > 0 else 1.0)
 
 

@@ -14,8 +14,8 @@ def turning_points(u: FloatArray, h: float) -> np.ndarray:
     """Indices of OP's alternating extremes with reversals of at least ``h`` (zigzag), the
     first and last sample included."""
     n = u.size
-    d = np.sign(np.diff(u))
-    nz = np.flatnonzero(d)
+    d = np.sign(u[1:] - u[:-1])
+    nz = d.nonzero()[0]
     if nz.size == 0:
         return np.array([0, n - 1])
     turn = nz[1:][d[nz[1:]] != d[nz[:-1]]]  # diff index where the direction changes
@@ -56,9 +56,9 @@ def sticky_valve(u: FloatArray, piv: np.ndarray, s_band: FloatArray,
     s_x = np.concatenate(([-s[0]], s))
     seg = np.zeros(m, dtype=np.intp)
     seg[piv[1:-1] + 1] = 1
-    seg = np.cumsum(seg)
+    seg = seg.cumsum()
     st = s[seg]
-    big = 4.0 * (float(np.abs(u).max()) + 1.0)
+    big = 4.0 * (float(np.maximum.reduce(np.abs(u))) + 1.0)
     run_ext = st * (np.maximum.accumulate(st * u + big * seg) - big * seg)
     nc, nk = s_band.size, s.size
     col = np.arange(1, nk + 1)
@@ -78,7 +78,7 @@ def sticky_valve(u: FloatArray, piv: np.ndarray, s_band: FloatArray,
         ref, e_ref = refs(slip[todo])
         thr = np.where(s_x[ref] == s[None, :], jb[todo], sb[todo])
         new = s[None, :] * (ext[None, :] - e_ref) > thr
-        changed = np.any(new != slip[todo], axis=1)
+        changed = np.logical_or.reduce(new != slip[todo], axis=1)
         slip[todo] = new
         todo = todo[changed]
         if todo.size == 0:
@@ -87,7 +87,7 @@ def sticky_valve(u: FloatArray, piv: np.ndarray, s_band: FloatArray,
     thr = np.where(s_x[ref] == s[None, :], jb, sb)
     beyond = np.maximum(0.0, s * (ext - e_ref) - thr - jb)
     step = np.where(slip, s * (jb + beyond), 0.0)
-    level = np.concatenate((np.zeros((nc, 1)), np.cumsum(step, axis=1)[:, :-1]), axis=1)
+    level = np.concatenate((np.zeros((nc, 1)), step.cumsum(axis=1)[:, :-1]), axis=1)
     d = st * (run_ext - e_ref[:, seg]) - thr[:, seg]
     vp = level[:, seg] + np.where(d > 0, st * (jb + np.maximum(0.0, d - jb)), 0.0)
     return np.asarray(vp)
@@ -96,10 +96,11 @@ def sticky_valve(u: FloatArray, piv: np.ndarray, s_band: FloatArray,
 def median_swing(u: FloatArray, piv: np.ndarray) -> float:
     """Median OP swing between turning points (the partial first and last runs left out
     when there are enough)."""
-    swings = np.abs(np.diff(u[piv]))
+    ext = u[piv]
+    swings = np.abs(ext[1:] - ext[:-1])
     return median(swings[1:-1] if swings.size > 3 else swings)
 
 
 def decimate(x: FloatArray, q: int) -> FloatArray:
     k = x.size // q
-    return np.asarray(x[x.size - k * q :].reshape(k, q).mean(axis=1))
+    return np.asarray(np.add.reduce(x[x.size - k * q :].reshape(k, q), axis=1) / q)

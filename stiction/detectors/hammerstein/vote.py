@@ -57,13 +57,14 @@ def swing_at_onsets(u: FloatArray, vp: FloatArray, lag: int) -> float | None:
     PV's onsets: He & Wang's eq 9 read at the fitted jumps, without a delay shift. A move is
     a run of samples in which the fitted valve goes one way (a jump, and the following of OP
     that the fit may add to it). None when fewer than two swings."""
-    dv = np.diff(vp)
-    idx = np.flatnonzero(np.abs(dv) > 1e-9 * float(np.max(np.abs(dv), initial=0.0)))
+    dv = vp[1:] - vp[:-1]
+    adv = np.abs(dv)
+    idx = (adv > 1e-9 * float(np.maximum.reduce(adv, initial=0.0))).nonzero()[0]
     if idx.size < 3:
         return None
     sign = np.sign(dv[idx])
-    new = np.concatenate(([True], (np.diff(idx) > 1) | (sign[1:] != sign[:-1])))
-    run = np.cumsum(new) - 1
+    new = np.concatenate(([True], (idx[1:] - idx[:-1] > 1) | (sign[1:] != sign[:-1])))
+    run = new.cumsum() - 1
     w = np.abs(dv[idx])
     centre = np.bincount(run, w * idx) / np.bincount(run, w)
     onset = np.rint(centre).astype(np.intp) + 1 + lag
@@ -71,7 +72,8 @@ def swing_at_onsets(u: FloatArray, vp: FloatArray, lag: int) -> float | None:
     ok = onset < u.size
     onset, run_sign = onset[ok], run_sign[ok]
     alt = run_sign[1:] != run_sign[:-1]
-    swings = np.abs(np.diff(u[onset]))[alt]
+    at = u[onset]
+    swings = np.abs(at[1:] - at[:-1])[alt]
     return median(swings) if swings.size >= 2 else None
 
 

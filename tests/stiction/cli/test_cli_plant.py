@@ -1,7 +1,10 @@
-"""`stiction plant` on a wide historian export of the hand-made plant with a sticky valve."""
+"""`stiction plant` on a wide historian export of the hand-made plant with a sticky valve,
+and `stiction simulate --plant` writing one."""
 
 from __future__ import annotations
 
+import csv
+import functools
 import json
 from pathlib import Path
 
@@ -10,6 +13,8 @@ from plant_fixtures import plant_records, write_wide_export
 
 from stiction.cli import main
 from stiction.cli.plant import loop_columns
+from stiction.scenarios.plant import PlantRecord, simulate_plants
+from stiction.scenarios.plants import NAMED_PLANTS
 
 
 def _export(tmp_path: Path, **kw: dict[str, str]) -> Path:
@@ -20,36 +25,133 @@ def test_groups_sources_and_every_loop_in_text(tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["plant", str(_export(tmp_path)), "--integrating", "LIC301"]) == 0
     out = capsys.readouterr().out
-    assert "group 1: period 1" in out and "source FIC101" in out
-    assert "members: FIC101" in out and "TI205" in out
-    assert "source ranking: FIC101" in out
-    for tag in ("FIC101", "TIC201", "LIC301", "PIC401", "FIC102"):
-        assert f"\n{tag}" in out or out.startswith(tag)
+    lines = out.splitlines()
+    # the count agrees with the members listed: loops and indicators apart
+    (h,) = [k for k, ln in enumerate(lines) if ln.startswith("group 1:")]
+    head, loops = lines[h], lines[h + 1]
+    assert head.startswith("group 1: period 1") and ", 3 loops and 1 indicator, " in head
+    assert "source FIC101 (named by " in head and loops.startswith("  loops: ")
+    assert sorted(x.split()[0] for x in loops[9:].split(", ")) == ["FIC101", "LIC301",
+                                                                    "TIC201"]
+    assert lines[h + 2].startswith("  indicators: TI205 ")
+    # the ranking with a header and every evidence's figure, then the legend of each
+    i = lines.index("  source ranking:", h)
+    assert lines[i + 1].split() == ["loop", "score", "own", "verdict", "valve", "Granger",
+                                    "NLI", "lag", "s"]
+    assert lines[i + 2].split()[0] == "FIC101"
+    assert "(score: the rank" in out and "NLI: nonlinearity index" in out
+    # the loop table: a header, each loop once, the confidence explained
+    (table,) = [k for k, ln in enumerate(lines) if ln.startswith("loop ")]
+    assert lines[table].split()[:5] == ["loop", "verdict", "confidence", "plant", "role"]
+    tags = [ln.split()[0] for ln in lines[table + 1:table + 6]]
+    assert tags == ["FIC101", "TIC201", "LIC301", "PIC401", "FIC102"]
+    assert "(confidence: the per-loop analysis' confidence" in out
 
 
-def test_json_has_groups_and_loops(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_json_has_groups_evidence_and_loops(tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["plant", str(_export(tmp_path)), "--integrating", "LIC301", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     (g,) = [g for g in data["groups"] if "FIC101" in g["loops"]]
     assert 140 < g["period_s"] < 200 and g["source"] == "FIC101"
-    assert g["source_ranking"][0]["loop"] == "FIC101"
-    assert all(set(r) >= {"loop", "score"} for r in g["source_ranking"])
+    assert "direction" in g["named_by"] and g["entry"] is None
+    assert g["indicators"] == ["TI205"] and len(g["loops"]) == 3
+    top = g["source_ranking"][0]
+    assert top["loop"] == "FIC101" and top["granger_flow"] > 0.2 and top["nli"] > 1.0
+    assert set(top) >= {"loop", "score", "verdict", "confidence", "valve_gain", "valve",
+                        "granger_flow", "nli", "lag_s", "harmonics"}
     scores = [r["score"] for r in g["source_ranking"]]
     assert scores == sorted(scores, reverse=True)
     loops = {x["loop"]: x for x in data["loops"]}
     assert set(loops) == {"FIC101", "TIC201", "LIC301", "PIC401", "FIC102"}
     assert loops["FIC101"]["role"] == "source"
-    assert loops["FIC101"]["verdict"] in ("stiction", "undetermined")
     assert loops["TIC201"]["role"] == "follower" and loops["TIC201"]["group"] == g["group"]
     assert all(set(x) >= {"loop", "verdict", "confidence", "group", "role"}
                for x in loops.values())
+    assert data["left_out"] == {}
 
 
-def test_the_spectral_map_is_drawn(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_spectral_map_marks_the_groups_and_has_a_colour_scale(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("matplotlib")
+    from stiction.cli import plant as plant_cli  # noqa: PLC0415
+
+    drawn: list[list[str]] = []
+    real = plant_cli.spectral_map
+    monkeypatch.setattr(plant_cli, "spectral_map",
+                        lambda *a, **k: drawn.append(real(*a, **k)) or [])
     png = tmp_path / "map.png"
     assert main(["plant", str(_export(tmp_path)), "--plot", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert drawn[0][0] == "share of the loop's power (log10)"
+    assert "group 1: source FIC101" in drawn[0]
+
+
+@functools.cache
+def _two_units() -> tuple[PlantRecord, PlantRecord]:
+    """The sticky plant twice, two seeds: two units whose valves cycle at one period."""
+    a, b = simulate_plants([NAMED_PLANTS["sticky-feeds-two"]] * 2, duration=7200.0, seed=11)
+    return a, b
+
+
+def _write_two_units(path: Path) -> Path:
+    a, b = _two_units()
+    cols = {f"U{k}.{n}.{s}": (r.op if s == "OP" else r.pv)[n]
+            for k, r in ((1, a), (2, b)) for n in r.op for s in ("OP", "PV")}
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t", *cols])
+        for i in range(next(iter(cols.values())).size):
+            w.writerow([i, *(f"{v[i]:.4f}" for v in cols.values())])
+    return path
+
+
+def test_two_units_at_one_period_are_two_groups(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    csv_path = _write_two_units(tmp_path / "two.csv")
+    assert main(["plant", str(csv_path), "--json"]) == 0
+    one = json.loads(capsys.readouterr().out)["groups"]
+    (mixed,) = [g for g in one if "U1.FIC101" in g["loops"]]
+    assert "U2.FIC101" in mixed["loops"]  # without units: one group across both
+    assert main(["plant", str(csv_path), "--json", "--unit-prefix"]) == 0
+    groups = json.loads(capsys.readouterr().out)["groups"]
+    by_source = {g["source"]: g for g in groups if g["source"]}
+    assert {"U1.FIC101", "U2.FIC101"} <= set(by_source)
+    assert not any(x.startswith("U2.") for x in by_source["U1.FIC101"]["loops"])
+    assert not any(x.startswith("U1.") for x in by_source["U2.FIC101"]["loops"])
+
+
+def test_units_are_named_by_a_map_or_by_the_tags_prefix() -> None:
+    from argparse import Namespace  # noqa: PLC0415
+
+    from stiction.cli.plant import _units  # noqa: PLC0415
+
+    loops = dict.fromkeys(["U1.FIC101", "U1.TIC201", "U2.FIC101", "FIC9"])
+    inds = dict.fromkeys(["U1/TI205", "TI9"])
+    assert _units(Namespace(unit_prefix=True, units=[]), loops, inds) == {
+        "U1.FIC101": "U1", "U1.TIC201": "U1", "U2.FIC101": "U2", "U1/TI205": "U1"}
+    assert _units(Namespace(unit_prefix=False, units=["A=u1.fic101,TI9", "B=FIC9"]), loops,
+                  inds) == {"U1.FIC101": "A", "TI9": "A", "FIC9": "B"}
+
+
+def test_simulate_writes_a_plant_export_that_plant_reads(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "plant.csv"
+    assert main(["simulate", "--plant", "sticky-feeds-two", "--ts", "2", "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert said.startswith("wrote 3600 samples (7200 s, every 2 s) of plant sticky-feeds-two")
+    assert "5 loops, 1 indicator; try: stiction plant" in said
+    header = out.read_text().splitlines()[0].split(",")
+    assert header[:3] == ["t", "FIC101.OP", "FIC101.PV"] and header[-1] == "TI205"
+    assert main(["plant", str(out), "--integrating", "LIC301", "--json"]) == 0
+    (g,) = [g for g in json.loads(capsys.readouterr().out)["groups"] if "FIC101" in g["loops"]]
+    assert g["source"] == "FIC101"
+    for bad, why in ((["--fs", "0.1"], "--plant takes --duration, --ts and --seed only, not "
+                                       "--fs"),
+                     (["--ts", "0.5"], "--ts 0.5: a plant's export is sampled every whole")):
+        with pytest.raises(SystemExit):
+            main(["simulate", "--plant", "sticky-feeds-two", *bad, "-o", str(out)])
+        assert why in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(("header", "loops", "indicators"), [
@@ -65,10 +167,10 @@ def test_loops_are_found_from_column_pairs(header: list[str], loops: dict[str, t
 
 
 def test_bad_input_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    csv = tmp_path / "x.csv"
-    csv.write_text("t,TI1,TI2\n0,1,2\n1,2,3\n")
+    csv_path = tmp_path / "x.csv"
+    csv_path.write_text("t,TI1,TI2\n0,1,2\n1,2,3\n")
     with pytest.raises(SystemExit) as exc:
-        main(["plant", str(csv)])
+        main(["plant", str(csv_path)])
     assert exc.value.code == 2
     assert "no loop found: name the columns TAG.OP and TAG.PV" in capsys.readouterr().err
     with pytest.raises(SystemExit):
@@ -77,3 +179,10 @@ def test_bad_input_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     with pytest.raises(SystemExit):
         main(["plant", str(_export(tmp_path)), "--cascade", "TIC201"])
     assert "--cascade 'TIC201': give OUTER=INNER" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["plant", str(_export(tmp_path)), "--units", "A=FIC101,XIC9"])
+    assert "--units 'A=FIC101,XIC9': no loop or indicator 'XIC9' in the file" in \
+        capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["plant", str(_export(tmp_path)), "--units", "FIC101"])
+    assert "--units 'FIC101': give UNIT=TAG,TAG,..." in capsys.readouterr().err

@@ -79,22 +79,33 @@ def test_pv_following_op_is_not_stick_slip() -> None:
     assert not stick_slip(op, pv).detected
 
 
+def _slow_slip(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Plant record 2411FIC20102_1008_1552 in outline (one noise draw per seed)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(N)
+    op = 50.0 + np.interp(t, [0, 670, 700, N], [1.4, 0.0, 2.0, 2.0])
+    pv = 99.0 + np.interp(t, [0, 702, 705, 712, 715, N], [0, 0, 1.6, 1.6, 2.3, 2.3])
+    return op + rng.normal(0, 0.02, N), pv + rng.normal(0, 0.25, N)
+
+
 def test_slow_slip_after_an_op_reversal_is_found() -> None:
     """Plant record 2411FIC20102_1008_1552 in outline: OP drifts down for most of the window
     (PV on setpoint), turns and ramps up 2 % over 30 samples with PV still, then PV climbs
     2.3 in two stages over 10 samples while OP stays put. The force was built since OP's turn
     (not over the whole still stretch, where OP went both ways), and the slip is wider than
-    five samples: found on the 10-sample scale."""
-    t = np.arange(N)
-    op = 50.0 + np.interp(t, [0, 670, 700, N], [1.4, 0.0, 2.0, 2.0])
-    pv = 99.0 + np.interp(t, [0, 702, 705, 712, 715, N], [0, 0, 1.6, 1.6, 2.3, 2.3])
-    pv += RNG.normal(0, 0.25, N)
-    ss = stick_slip(op + RNG.normal(0, 0.02, N), pv)
-    assert ss.detected
-    (e,) = ss.episodes
-    assert 700 <= e.at <= 715
-    assert e.op_travel == pytest.approx(2.0, abs=0.3)
+    five samples: found on the 10-sample scale. PV's noise (0.25) is a third of the first
+    stage's rise, so some draws hide it: found in at least 3 of 4 of 20 draws (16 today;
+    the test once used a generator shared with the file's other tests, so it passed only in
+    file order)."""
+    found = 0
+    for seed in range(20):
+        ss = stick_slip(*_slow_slip(seed))
+        if ss.detected and len(ss.episodes) == 1:
+            (e,) = ss.episodes
+            found += 700 <= e.at <= 715 and e.op_travel == pytest.approx(2.0, abs=0.3)
+    assert found >= 15
     # one episode is a hint, not a vote: a load step can do the same once
+    op, pv = _slow_slip(0)
     a = analyze(op, pv, ts=10.0)
     ev = next(x for x in a.evidence if x.test == "stick_slip")
     assert ev.vote == 0

@@ -11,14 +11,14 @@ import os
 
 import pytest
 
-from bench import real_data
+from lab.sources import records
 from stiction import Verdict, analyze
 
 CALLS = (Verdict.STICTION, Verdict.VALVE_NOT_RESPONDING)
 
 
 def _need(path: object) -> None:
-    if not real_data.PLANT.exists() or not real_data.TEP.exists():
+    if not records.PLANT.exists() or not records.TEP.exists():
         if os.environ.get("CI") == "true":
             pytest.fail(f"real data missing under CI: {path}")
         pytest.skip(f"real data not found: {path}")
@@ -30,10 +30,10 @@ def test_plant_records_per_tag() -> None:
     majority of its records. Issue 13 asks for 4: the fourth would be 2411FIC20102, whose
     records each hold one stick-slip episode, and one episode alone made two of the three
     false calls on outside loops, so it is no longer a call (docs/accuracy.md)."""
-    _need(real_data.PLANT)
+    _need(records.PLANT)
     votes: dict[str, list[bool]] = collections.defaultdict(list)
     sticky: dict[str, bool] = {}
-    for c in real_data.plant_cases():
+    for c in records.plant_cases():
         votes[c.group].append(analyze(c.op, c.pv, ts=c.ts).verdict in CALLS)
         sticky[c.group] = c.sticky
     called = {tag for tag, v in votes.items() if 2 * sum(v) >= len(v)}
@@ -47,9 +47,9 @@ def test_plant_records_per_tag() -> None:
 def test_tep_sticky_reactor_valve_found_and_nothing_else() -> None:
     """Every IDV 14 run (the reactor cooling-water valve sticks) is called stiction; no
     normal, disturbed or propagated run is called (IDV 15 is barely visible, README)."""
-    _need(real_data.TEP)
+    _need(records.TEP)
     wrong = []
-    for c in real_data.tep_cases():
+    for c in records.tep_cases():
         v = analyze(c.op, c.pv, ts=c.ts).verdict
         if c.cause == "sticky (IDV 14)" and v != Verdict.STICTION:
             wrong.append((c.name, str(v)))

@@ -49,6 +49,11 @@ def test_every_paper_row_is_reproduced(rows: list[ReproRow]) -> None:
     assert len(rows) == len(PAPER_ROWS) == 4 + 14 + 7 + 7 + 16
 
 
+FITTED_WITHIN = 0.20
+"""How near the truth a size from the valve fitted to PV must be where the valve jumps more
+than once per half cycle (no limit cycle's jumps to read: Table 6's slow loops, 7-15 %)."""
+
+
 def _confidently_wrong(r: ReproRow) -> bool:
     """Wrong sizes given with a stiction verdict. Every paper row's valve is sticky, so a
     stiction verdict with no sizes at all (stick-slip seen, no limit cycle to size it from)
@@ -58,6 +63,8 @@ def _confidently_wrong(r: ReproRow) -> bool:
         return False
     if a.fd is None and a.fs is None:
         return "not sized" not in a.reason
+    if a.multi_jump and a.cycles_used == 0:  # sized from the valve fitted to PV (issue 28)
+        return a.fd is None or abs(a.fd / r.paper.fd_true - 1) >= FITTED_WITHIN
     return (a.fd is None or abs(a.fd / r.paper.fd_true - 1) >= 0.05
             or (a.fs is not None and abs(a.fs / r.paper.fs_true - 1) >= 0.05 and not _exempt(r)))
 
@@ -128,7 +135,7 @@ def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float, see
     a = r.assessment
     assert not _confidently_wrong(r), a
     if a.verdict == Verdict.STICTION and a.fd is None:
-        assert a.multi_jump or "not sized" in a.reason
+        assert "not sized" in a.reason
     if a.verdict != Verdict.STICTION:
         assert a.fd is None
         assert a.fs is None

@@ -12,7 +12,8 @@ from plant_fixtures import plant_records
 
 from stiction import Assessment, Evidence, ParameterError, Verdict, analyze
 from stiction.plant import PlantAssessment, analyze_plant
-from stiction.scenarios.plant import PlantRecord
+from stiction.scenarios.plant import Indicator, PlantRecord, simulate_plants
+from stiction.scenarios.plants import NAMED_PLANTS
 
 
 def _processes(rec: PlantRecord) -> dict[str, str]:
@@ -36,6 +37,7 @@ def test_a_sticky_valve_and_its_followers_form_one_group_with_the_valve_as_sourc
     assert {"FIC101", "TIC201", "LIC301"} <= set(g.loops)
     assert "TI205" in {m.name for m in g.members if m.kind == "indicator"}
     assert g.source == "FIC101" and g.ranking[0].loop == "FIC101"
+    assert "direction" in g.named_by  # it leads TIC201 and LIC301 (Granger)
     assert 140 < g.period_s < 180
     # its own window: at least undetermined with the valve evidence for (the named source)
     assert before["FIC101"].verdict in (Verdict.STICTION, Verdict.UNDETERMINED)
@@ -43,6 +45,7 @@ def test_a_sticky_valve_and_its_followers_form_one_group_with_the_valve_as_sourc
     assert view.roles["TIC201"].role == view.roles["LIC301"].role == "follower"
     assert view.roles["TIC201"].source == "FIC101"
     assert "FIC101 is the source of the" in g.reason and "sticky valve explains" in g.reason
+    assert "Granger net flow +" in g.reason and "nonlinearity index" in g.reason
 
 
 def test_a_follower_called_stiction_becomes_propagated_and_the_source_keeps_its_size() -> None:
@@ -62,18 +65,116 @@ def test_a_follower_called_stiction_becomes_propagated_and_the_source_keeps_its_
 
 
 def test_a_square_cycle_from_outside_has_no_loop_source() -> None:
+    """The header's pressure (PI_STEAM, read through a 10 s lag) trails the fastest loop it
+    reaches: no evidence outside the loops leads, so no "enters from outside", and no loop
+    shows evidence of its own either."""
     _rec, before, view = _view("header-square")
     (g,) = [g for g in view.groups if "TIC201" in g.loops]
     assert abs(g.period_s - 600.0) < 40.0
     assert {"TIC201", "PIC401", "FIC102"} <= set(g.loops)
-    assert g.source is None and g.external
+    assert g.source is None and g.external and not g.outside
     assert "PI_STEAM" in {m.name for m in g.members}
-    assert "no loop analysed here is the source" in g.reason
+    assert "no loop analysed here shows evidence of being the source" in g.reason
+    assert "outside" not in g.reason
     called = {n: dataclasses.replace(a, verdict=Verdict.STICTION) for n, a in before.items()}
     after = view.apply(called)
+    assert view.group(view.roles["TIC201"].group or 0).source is not None or all(
+        after[n].verdict == Verdict.PROPAGATED for n in ("TIC201", "PIC401", "FIC102"))
+
+
+@functools.cache
+def _header_read_fast() -> tuple[PlantRecord, dict[str, Assessment]]:
+    """header-square with its pressure read at once (a transmitter on the header, 1 s)."""
+    sc = NAMED_PLANTS["header-square"]
+    fast = dataclasses.replace(sc, indicators=(Indicator("PI_STEAM", "steam", tau=1.0),))
+    (rec,) = simulate_plants([fast], duration=7200.0, seed=3)
+    proc = _processes(rec)
+    return rec, {n: analyze(rec.op[n], rec.pv[n], ts=rec.ts, process=proc[n]) for n in rec.op}
+
+
+def test_an_indicator_that_leads_names_where_the_cycle_enters_from_outside() -> None:
+    """The header's pressure read at once leads every loop and its square cycle is the most
+    nonlinear: the cycle enters from outside, by it. A loop the per-loop tests call
+    stiction whose own cycle is linear follows; one whose cycle is nonlinear keeps its call
+    (an indicator right after a sticky valve leads it too)."""
+    rec, before = _header_read_fast()
+    called = {**before, "FIC102": dataclasses.replace(before["FIC102"],
+                                                      verdict=Verdict.STICTION,
+                                                      confidence=0.9)}
+    loops = {n: (rec.op[n], rec.pv[n]) for n in rec.op}
+    view = analyze_plant(loops, ts=rec.ts, indicators=rec.indicators, assessments=called,
+                         processes=_processes(rec))
+    (g,) = [g for g in view.groups if "TIC201" in g.loops]
+    assert g.source is None and g.outside and g.entry == "PI_STEAM"
+    assert g.named_by == ("indicator",)
+    assert "enters from outside the loops: indicator PI_STEAM leads them" in g.reason
+    after = view.apply(called)
     for name in ("TIC201", "PIC401", "FIC102"):
-        assert after[name].verdict == Verdict.PROPAGATED
-        assert "its source is no loop analysed here" in after[name].reason
+        assert view.roles[name].role == "follower"
+    assert after["FIC102"].verdict == Verdict.PROPAGATED
+    assert "indicator PI_STEAM leads its cycle" in after["FIC102"].reason
+    assert "own tests said stiction at 0.90" in after["FIC102"].reason
+    nonlinear = max((e for e in g.ranking if e.nli is not None), key=lambda e: e.nli or 0.0)
+    assert (nonlinear.nli or 0.0) > 1.0  # the square reaches a loop nonlinear
+    called[nonlinear.loop] = dataclasses.replace(before[nonlinear.loop],
+                                                 verdict=Verdict.STICTION, confidence=0.9)
+    view = analyze_plant(loops, ts=rec.ts, indicators=rec.indicators, assessments=called,
+                         processes=_processes(rec))
+    (g,) = [g for g in view.groups if "TIC201" in g.loops]
+    assert g.entry is None and "own verdict" in g.named_by
+    assert g.source in ("FIC102", nonlinear.loop)  # a call stands: one of the two called
+
+
+def test_a_loop_called_stiction_in_a_group_is_its_source() -> None:
+    """One story per loop: the source's own call stands, and a follower the per-loop tests
+    also called stiction is led by it (Granger), so it is propagated, the reason says so."""
+    rec, before, _v = _view("sticky-feeds-two")
+    called = {**before,
+              "FIC101": dataclasses.replace(before["FIC101"], verdict=Verdict.STICTION,
+                                            confidence=0.91),
+              "TIC201": dataclasses.replace(before["TIC201"], verdict=Verdict.STICTION,
+                                            confidence=0.88)}
+    view = analyze_plant({n: (rec.op[n], rec.pv[n]) for n in rec.op}, ts=rec.ts,
+                         indicators=rec.indicators, assessments=called,
+                         processes=_processes(rec))
+    (g,) = [g for g in view.groups if "FIC101" in g.loops]
+    assert g.source == "FIC101" and g.named_by[0] == "own verdict"
+    assert "TIC201" in g.demoted and "FIC101 leads its cycle" in g.demoted["TIC201"]
+    after = view.apply(called)
+    assert after["FIC101"].verdict == Verdict.STICTION
+    assert after["TIC201"].verdict == Verdict.PROPAGATED
+    assert "FIC101 leads its cycle (Granger net flow +" in after["TIC201"].reason
+
+
+def test_named_evidence_overrides_a_followers_own_call_and_both_reasons_say_why() -> None:
+    """Only a follower is called stiction; the sticky valve's loop leads it and a sticky
+    valve explains its PV: that loop is the source, and the group's reason and the
+    follower's both name the evidence."""
+    rec, before, _v = _view("sticky-feeds-two")
+    called = {**before, "TIC201": dataclasses.replace(before["TIC201"],
+                                                      verdict=Verdict.STICTION,
+                                                      confidence=0.93)}
+    view = analyze_plant({n: (rec.op[n], rec.pv[n]) for n in rec.op}, ts=rec.ts,
+                         indicators=rec.indicators, assessments=called,
+                         processes=_processes(rec))
+    (g,) = [g for g in view.groups if "FIC101" in g.loops]
+    assert g.source == "FIC101" and "direction" in g.named_by
+    assert "followers its own tests called stiction: TIC201: FIC101 leads its cycle" in g.reason
+    after = view.apply(called)
+    assert after["TIC201"].verdict == Verdict.PROPAGATED
+    assert "its source is FIC101 (named by" in after["TIC201"].reason
+    assert "FIC101 leads its cycle" in after["TIC201"].reason
+
+
+def test_the_ranking_carries_every_evidence_with_its_figure() -> None:
+    _rec, _before, view = _view("sticky-feeds-two")
+    (g,) = [g for g in view.groups if "FIC101" in g.loops]
+    top = g.ranking[0]
+    assert top.loop == "FIC101"
+    assert top.verdict is not None and top.confidence is not None
+    assert top.valve_gain is not None and top.flow is not None and top.flow > 0.2
+    assert top.nli is not None and top.lag_s == pytest.approx(0.0, abs=1e-9)
+    assert all(e.flow is not None and e.flow < top.flow for e in g.ranking[1:])
 
 
 def test_two_sticky_valves_at_two_periods_are_two_groups() -> None:
@@ -95,12 +196,13 @@ def test_loops_sharing_nothing_are_left_as_they_were() -> None:
     assert view.apply(before) == before
 
 
-def test_without_assessments_the_ranking_stands_but_no_source_is_named() -> None:
+def test_without_assessments_direction_and_the_valve_still_name_the_source() -> None:
     rec = _view("sticky-feeds-two")[0]
     view = analyze_plant({n: (rec.op[n], rec.pv[n]) for n in rec.op}, ts=rec.ts,
                          processes=_processes(rec))
     (g,) = [g for g in view.groups if "FIC101" in g.loops]
-    assert g.ranking[0].loop == "FIC101" and g.source is None
+    assert g.ranking[0].loop == "FIC101" and g.source == "FIC101"
+    assert "own verdict" not in g.named_by and "direction" in g.named_by
 
 
 def test_a_declared_cascade_names_the_inner_loop() -> None:

@@ -1,7 +1,9 @@
 """tep-studio (revised Tennessee Eastman model, Ricker's decentralised PI control) for the
-development corpus: the loop table, a mode's settled start and one closed-loop run.
+development corpus: the loop table, a mode's settled start, one closed-loop run, and the
+model's sticky valve rebuilt in numpy (:func:`valve_command`, :func:`lagged`).
 
-Only bench code imports this module, and it imports tep-studio lazily (``bench`` extra).
+It imports tep-studio lazily (the ``bench`` extra): the rest of the lab reads its cached
+runs without it.
 
 What tep-studio 0.2.0 does (read in its source, checked by running it):
 
@@ -215,6 +217,31 @@ def run(settled: Settled, seed: int, idvs: Sequence[tuple[int, float]],
     return RunArrays(rows[:, 0], rows[:, 1 : 1 + m], rows[:, 1 + m : 1 + 2 * m],
                      rows[:, 1 + 2 * m : 1 + 3 * m], rows[:, 1 + 3 * m : 1 + 4 * m],
                      rows[:, 1 + 4 * m :], tripped)
+
+
+def valve_command(op: np.ndarray, band: float, start: float | None = None) -> np.ndarray:
+    """The valve's command under the model's rule: it follows OP only when OP has moved
+    more than ``band`` away from it, then jumps to OP (He's model with fs = band, fd = 0);
+    one value per OP sample, starting at ``start`` (OP's first value if None)."""
+    out = np.empty(op.size)
+    v = float(op[0] if start is None else start)
+    for k, u in enumerate(op.tolist()):
+        if abs(u - v) > band:
+            v = u
+        out[k] = v
+    return out
+
+
+def lagged(command: np.ndarray, ts: float, tau: float, start: float) -> np.ndarray:
+    """``command`` (held over each sample) through a first-order lag ``tau`` (s): the valve
+    position the model integrates, sampled at the end of each period."""
+    a = float(np.exp(-ts / tau))
+    out = np.empty(command.size)
+    x = start
+    for k, c in enumerate(command.tolist()):
+        x = a * x + (1.0 - a) * c
+        out[k] = x
+    return out
 
 
 _RATIO = {"XMV1": "r2", "XMV2": "r3", "XMV3": "r1", "XMV4": "r4", "XMV6": "r5", "XMV7": "r6",

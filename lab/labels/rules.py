@@ -1,12 +1,12 @@
 """How the development corpus labels a window, measured from the data (no tep-studio here).
 
 A sticky valve's loop is labelled by what its valve did in the window, rebuilt from the
-controller output with the model's own rule (:func:`valve_command`): ``stiction`` when it
-stuck and slipped (a stick-slip pattern: at least :data:`MIN_SLIPS` slips, at least
-:data:`MIN_HOLD` samples between slips in the median), ``stiction-stuck`` when it hardly
-moved (fewer slips: OP wandered inside the band), ``stiction-masked`` when it slipped at
-almost every sample (OP noise larger than the band dithers the valve: the loop behaves as
-with a good valve).
+controller output with the model's own rule (``valve_command``, lab/sources/tep.py):
+``stiction`` when it stuck and slipped (a stick-slip pattern: at least :data:`MIN_SLIPS`
+slips, at least :data:`MIN_HOLD` samples between slips in the median), ``stiction-stuck``
+when it hardly moved (fewer slips: OP wandered inside the band), ``stiction-masked`` when it
+slipped at almost every sample (OP noise larger than the band dithers the valve: the loop
+behaves as with a good valve).
 
 Every other loop is labelled against the same loop in the same operating mode's normal
 runs (the reference, :class:`Reference`): ``propagated`` when the sticky valve's cycle
@@ -24,37 +24,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..windows.tep import LoopSummary
+
 MIN_SLIPS = 6  # as stiction.scenarios.realistic keeps a sticky record
 MIN_HOLD = 10  # samples (18 s at 1.8 s): a median rest shorter than this is dither
 SD_RATIO = 1.5  # OP or PV SD over the largest of the normal runs': affected
 CYCLE_RATIO = 4.0  # power in the sticky cycle's band over the largest normal: propagated
 BAND = 1.5  # the cycle's band: f0 / BAND .. f0 * BAND
 STICKY_CLASSES = ("stiction", "stiction-stuck", "stiction-masked")
-
-
-def valve_command(op: np.ndarray, band: float, start: float | None = None) -> np.ndarray:
-    """The valve's command under the model's rule: it follows OP only when OP has moved
-    more than ``band`` away from it, then jumps to OP (He's model with fs = band, fd = 0);
-    one value per OP sample, starting at ``start`` (OP's first value if None)."""
-    out = np.empty(op.size)
-    v = float(op[0] if start is None else start)
-    for k, u in enumerate(op.tolist()):
-        if abs(u - v) > band:
-            v = u
-        out[k] = v
-    return out
-
-
-def lagged(command: np.ndarray, ts: float, tau: float, start: float) -> np.ndarray:
-    """``command`` (held over each sample) through a first-order lag ``tau`` (s): the valve
-    position the model integrates, sampled at the end of each period."""
-    a = float(np.exp(-ts / tau))
-    out = np.empty(command.size)
-    x = start
-    for k, c in enumerate(command.tolist()):
-        x = a * x + (1.0 - a) * c
-        out[k] = x
-    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,17 +65,6 @@ def band_power(freqs: np.ndarray, psd: np.ndarray, f0: float) -> float:
     """Power of ``psd`` (one-sided, on ``freqs``) from f0 / BAND to f0 * BAND."""
     sel = (freqs >= f0 / BAND) & (freqs <= f0 * BAND)
     return float(psd[sel].sum()) if sel.any() else 0.0
-
-
-@dataclasses.dataclass(frozen=True)
-class LoopSummary:
-    """One loop over a run's recorded part: OP and PV SDs and spectra."""
-
-    op_sd: float
-    pv_sd: float
-    freqs: np.ndarray
-    op_psd: np.ndarray
-    pv_psd: np.ndarray
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,5 +1,5 @@
-"""Windows and plant runs of the Tennessee Eastman runs, labelled (bench/_corpus_label.py)
-against their operating mode's normal runs."""
+"""Windows and plant runs of the Tennessee Eastman runs (lab/windows/tep.py), labelled
+(lab/labels/rules.py) against their operating mode's normal runs."""
 
 from __future__ import annotations
 
@@ -9,28 +9,40 @@ from typing import Any
 
 import numpy as np
 
-from . import _corpus_label as lab
-from ._corpus_plan import TepRun
-from ._corpus_tep import GATEWAY_AT, HISTORIAN, RECORD_H, STUDY, TS, valve_stats
-from ._corpus_types import PlantRun, Window
-from ._tep import LOOPS
+from .._types import PlantRun, Window
+from ..sources.tep import LOOPS, valve_command
+from ..sources.tep_plan import TepRun
+from ..windows.tep import GATEWAY_AT, GATEWAY_N, HISTORIAN, RECORD_H, TS, views
+from . import rules
 
 PROCESS = "self-regulating"  # flows and temperatures; none of the XMV loops is a level
 _PVS = {lp.pv for lp in LOOPS}
 
 
-def _references(items: Sequence[dict[str, Any]]) -> list[lab.Reference] | None:
+def valve_stats(v: dict[str, Any]) -> dict[str, rules.ValveStats]:
+    """A kept sticky valve's stats per gateway window and over the whole recorded part."""
+    cmd = valve_command(v["op"].astype(np.float64), v["band"], start=v["start"])
+    stats = {"whole": rules.valve_stats(cmd, TS)}
+    for k, at in enumerate(GATEWAY_AT):
+        i = round(at * 3600 / TS)
+        if i + GATEWAY_N <= cmd.size:
+            stats[f"gateway{k}"] = rules.valve_stats(cmd[i : i + GATEWAY_N], TS)
+    return stats
+
+
+
+def _references(items: Sequence[dict[str, Any]]) -> list[rules.Reference] | None:
     normals = [d for d in items if d["run"].cause == "normal" and not d["tripped"]]
     if not normals:
         return None
-    return [lab.Reference.of([d["summary"][j] for d in normals]) for j in range(len(LOOPS))]
+    return [rules.Reference.of([d["summary"][j] for d in normals]) for j in range(len(LOOPS))]
 
 
-def _other_labels(d: dict[str, Any], refs: list[lab.Reference]) -> dict[int, lab.OtherLabel]:
+def _other_labels(d: dict[str, Any], refs: list[rules.Reference]) -> dict[int, rules.OtherLabel]:
     run: TepRun = d["run"]
     cycles = [v["f0"] for v in d["valves"].values()
               if v["stats"]["whole"].cause_class == "stiction"]
-    return {j: lab.other_label(d["summary"][j], refs[j], sticky=bool(run.sticky),
+    return {j: rules.other_label(d["summary"][j], refs[j], sticky=bool(run.sticky),
                                cycles_hz=cycles, disturbed=run.disturbed)
             for j in range(len(LOOPS)) if j not in d["valves"]}
 
@@ -42,13 +54,13 @@ def _meta(run: TepRun, op: np.ndarray, extra: dict[str, Any]) -> dict[str, Any]:
 
 
 def _label(d: dict[str, Any], j: int, view: str, stats_key: str,
-           others: dict[int, lab.OtherLabel]) -> tuple[str, float, dict[str, Any], str]:
+           others: dict[int, rules.OtherLabel]) -> tuple[str, float, dict[str, Any], str]:
     """(cause class, stiction size, meta, note) of loop ``j`` in one view of run ``d``; a
     sticky valve's position (simulated, not measured in a plant) is in the gateway and
     historian views' meta as ``valve_position``."""
     if j in d["valves"]:
         v = d["valves"][j]
-        st: lab.ValveStats = v["stats"][stats_key]
+        st: rules.ValveStats = v["stats"][stats_key]
         pos = v["pos_historian"] if view == "historian" else \
             v["pos_gateway"].get(int(stats_key[-1])) if view == "gateway" else None
         meta = {"slips": st.slips, "held": st.held, "median_hold": st.median_hold,
@@ -65,23 +77,12 @@ def _label(d: dict[str, Any], j: int, view: str, stats_key: str,
     return o.cause_class, 0.0, {"sd_ratio": o.sd_ratio, "cycle_ratio": o.cycle_ratio}, note
 
 
-def _views(d: dict[str, Any]) -> list[tuple[str, str, float, float, np.ndarray, np.ndarray]]:
-    """(view, stats key, ts, t0, op rows, pv rows) of every view the run kept."""
-    out = [("gateway", f"gateway{k}", TS, RECORD_H[0] + GATEWAY_AT[k], op, pv)
-           for k, (op, pv) in d["gateway"].items()]
-    if "historian" in d:
-        h, s = d["historian"], d["study"]
-        out.append(("historian", "whole", TS * HISTORIAN, RECORD_H[0], h["op"], h["pv"]))
-        out.append(("study", "whole", TS * STUDY, RECORD_H[0], s["op"], s["pv"]))
-    return out
-
-
-def _run_windows(d: dict[str, Any], refs: list[lab.Reference]) -> list[Window]:
+def _run_windows(d: dict[str, Any], refs: list[rules.Reference]) -> list[Window]:
     run: TepRun = d["run"]
     others = _other_labels(d, refs)
     out = []
     tripped = f"; plant tripped ({d['tripped']})" if d["tripped"] else ""
-    for view, key, ts, t0, ops, pvs in _views(d):
+    for view, key, ts, t0, ops, pvs in views(d):
         for j, lp in enumerate(LOOPS):
             cls, size, extra, note = _label(d, j, view, key, others)
             op = ops[j].astype(np.float64)

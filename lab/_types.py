@@ -19,7 +19,7 @@ CAUSE_CLASSES = ("stiction", "stiction-stuck", "stiction-masked", "normal", "dis
                  "propagated", "tuning", "ramp-load", "non-stiction")
 """``stiction``: a sticky valve that stuck and slipped in the window. ``stiction-stuck`` and
 ``stiction-masked``: a sticky valve that hardly moved, or that OP noise dithered (TEP only,
-see bench/_corpus_label.py). ``normal``, ``disturbance``, ``propagated`` (another loop's
+see lab/labels/rules.py). ``normal``, ``disturbance``, ``propagated`` (another loop's
 stick-slip cycle reaches this one), ``tuning`` and ``ramp-load`` (stiction.scenarios.realistic's
 causes), ``non-stiction`` (a plant record labelled so, cause not documented)."""
 

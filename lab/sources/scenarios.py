@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import hashlib
 import inspect
-import pickle
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +20,8 @@ import numpy as np
 from stiction.scenarios import named
 from stiction.scenarios.named import scenario, simulate
 
-from ._corpus_types import Window
+from .. import _cache
+from .._types import Window
 
 SEED = 24
 COUNT = 240  # records drawn (sticky and good alternately)
@@ -64,8 +64,7 @@ def windows(cache: Path) -> list[Window]:
     key = hashlib.sha256(f"{src}{SEED}{COUNT}".encode()).hexdigest()[:12]
     path = cache / f"train-scenarios-{key}.pickle"
     if path.exists():
-        with path.open("rb") as fh:
-            cached: list[Window] = pickle.load(fh)
+        cached: list[Window] = _cache.load(path)
         return cached
     out = []
     for i in range(COUNT):
@@ -82,7 +81,5 @@ def windows(cache: Path) -> list[Window]:
         out.append(Window("scenarios", f"scenario-{i}", name, name, cls, sticky,
                           np.asarray(res.op[sl]), np.asarray(res.pv[sl]), float(step) * sc.ts,
                           process, f"{name} {over} noise {noise}", 100.0 * sc.fs, "record"))
-    cache.mkdir(parents=True, exist_ok=True)
-    with path.open("wb") as fh:
-        pickle.dump(out, fh)
+    _cache.dump(out, path)
     return out

@@ -1,92 +1,90 @@
-"""The development corpus's other sources: ``stiction.scenarios.realistic`` (every cause, several
-seeds, cached), the plant records and the shared TEP runs (bench/real_data.py's loaders)
-and the single cases of ../shared/data/cases."""
+"""The recorded sources: the plant records (../shared/data/plant-stictiongpt, a run per tag),
+the shared Tennessee Eastman runs (../shared/data/tep-sticky-valves) and the single cases of
+../shared/data/cases whose right answer is stated; each as :class:`Case` records to score
+(``python -m bench real_data``) and as the corpus's windows and plant runs."""
 
 from __future__ import annotations
 
 import collections
 import csv
-import hashlib
-import inspect
-import pickle
+import dataclasses
 import re
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from stiction.scenarios import realistic  # the one import of the generator
+from .._types import PlantRun, Window
 
-from . import real_data
-from ._corpus_types import PlantRun, Window
-
-REALISTIC_SEEDS = (11, 12, 13, 14, 15)  # not bench/real_data.py's 1-3: no overlap with it
-REALISTIC_CAUSES = realistic.CAUSES
-REALISTIC_PER_CAUSE = 30  # records per cause and seed
-REALISTIC_CLASS = {"stiction": "stiction", "tuning": "tuning", "disturbance": "disturbance",
-                   "propagated": "propagated", "noise": "normal", "ramp-load": "ramp-load"}
-CASES = real_data.SHARED / "cases"
+SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
+PLANT = SHARED / "plant-stictiongpt"
+TEP = SHARED / "tep-sticky-valves"
+CASES = SHARED / "cases"
 # the cases' README gives what went wrong and the right answer; each known file here
 CASE_LABELS = {"aggressive-tuning-analyze-raises": ("tuning", "tuning", "self-regulating")}
 
 
-def _realistic_path(cache: Path, cause: str, seed: int) -> Path:
-    src = inspect.getsource(realistic)
-    key = hashlib.sha256(f"{src}{cause}{seed}{REALISTIC_PER_CAUSE}".encode()).hexdigest()
-    return cache / f"realistic-{cause}-{seed}-{key[:12]}.pickle"
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """One record to score: ``group`` is what a score is grouped by (tag, run, loop)."""
+
+    dataset: str
+    name: str
+    group: str
+    sticky: bool
+    cause: str
+    op: np.ndarray
+    pv: np.ndarray
+    ts: float
+    process: str = "self-regulating"
+    note: str = ""
 
 
-def build_realistic(cache: Path, log: Callable[[str], None]) -> int:
-    """Draw what is not cached yet; returns how many (cause, seed) sets were drawn. Kept as
-    plain dicts, so the cache does not depend on where the generator's classes live."""
-    cache.mkdir(parents=True, exist_ok=True)
-    done = 0
-    for seed in REALISTIC_SEEDS:
-        for cause in REALISTIC_CAUSES:
-            path = _realistic_path(cache, cause, seed)
-            if path.exists():
-                continue
-            recs = [{"cause": r.cause, "index": r.index, "ts": r.ts, "process": r.process,
-                     "op": r.op, "pv": r.pv, "op_range": r.op_range, "fs": r.fs, "fd": r.fd,
-                     "description": r.description, "sticky": r.sticky}
-                    for r in realistic.realistic_loops(cause, REALISTIC_PER_CAUSE, seed=seed)]
-            tmp = path.with_suffix(".tmp")
-            with tmp.open("wb") as fh:
-                pickle.dump(recs, fh, protocol=pickle.HIGHEST_PROTOCOL)
-            tmp.replace(path)
-            done += 1
-            log(f"  realistic {cause} seed {seed}: {len(recs)} records")
-    return done
+def _csv(path: Path) -> dict[str, np.ndarray]:
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    return {n: np.asarray(data[n], dtype=np.float64) for n in data.dtype.names or ()}
 
 
-def realistic_windows(cache: Path) -> list[Window]:
+def plant_cases() -> list[Case]:
+    with (PLANT / "labels.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
     out = []
-    for seed in REALISTIC_SEEDS:
-        for cause in REALISTIC_CAUSES:
-            path = _realistic_path(cache, cause, seed)
-            if not path.exists():
-                continue
-            with path.open("rb") as fh:
-                recs: list[dict[str, Any]] = pickle.load(fh)
-            for r in recs:
-                run = f"realistic-{cause}-{seed}-{r['index']}"
-                out.append(Window(
-                    "realistic", run, "loop", cause, REALISTIC_CLASS[cause], bool(r["sticky"]),
-                    np.asarray(r["op"], dtype=np.float64), np.asarray(r["pv"], np.float64),
-                    float(r["ts"]), r["process"], r["description"],
-                    100.0 * float(r["fs"]), "record", float("nan"),
-                    {"seed": seed, "index": r["index"], "fs": r["fs"], "fd": r["fd"],
-                     "op_range": r["op_range"]}))
+    for r in rows:
+        d = _csv(PLANT / f"{r['loop']}.csv")
+        out.append(Case("plant", r["loop"], r["tag"], r["label"] == "stiction",
+                        r["loop_type"], d["op"], d["pv"], float(np.median(np.diff(d["t"])))))
     return out
+
+
+def _tep_cause(cause: str, sticky: bool) -> str:
+    if sticky:
+        return "sticky (IDV 14)" if "14" in cause else "sticky (IDV 15)"
+    if cause.startswith("propagated"):
+        return "propagated"
+    if cause.startswith("none"):
+        return "normal"
+    return "disturbance"
+
+
+def tep_cases() -> list[Case]:
+    out = []
+    for sub in ("braatz", "ricker"):
+        with (TEP / sub / "labels.csv").open() as fh:
+            for r in csv.DictReader(fh):
+                d = _csv(TEP / sub / f"{r['name']}.csv")
+                sticky = r["label"] == "stiction"
+                out.append(Case("tep", f"{sub}/{r['name']}", f"{sub}/{r['name']}", sticky,
+                                _tep_cause(r["cause"], sticky), d["op"], d["pv"],
+                                float(r["ts"])))
+    return out
+
 
 
 def plant_windows() -> list[Window]:
     """The plant records, one run per tag (records of a tag are one valve)."""
-    with (real_data.PLANT / "labels.csv").open() as fh:
+    with (PLANT / "labels.csv").open() as fh:
         types = {r["loop"]: r["loop_type"] for r in csv.DictReader(fh)}
     out = []
-    for c in real_data.plant_cases():
+    for c in plant_cases():
         kind = types[c.name]
         process = "integrating" if kind == "level" else "self-regulating"
         out.append(Window(
@@ -111,7 +109,7 @@ def _shared_run(name: str) -> tuple[str, str, int | None]:
 
 def shared_tep_windows() -> list[Window]:
     out = []
-    for c in real_data.tep_cases():
+    for c in tep_cases():
         run, loop, idv = _shared_run(c.name)
         cls = {"normal": "normal", "propagated": "propagated", "disturbance": "disturbance"}
         cause_class = "stiction" if c.sticky else cls.get(c.cause, "disturbance")

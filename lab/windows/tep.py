@@ -1,12 +1,13 @@
-"""The Tennessee Eastman part of the development corpus: each run simulated once and reduced
-to what the corpus keeps (cached per run), then cut into windows and plant runs, labelled
-against the mode's normal runs (bench/_corpus_label.py)."""
+"""The Tennessee Eastman runs cut into the windows the corpus keeps: each run simulated once
+(lab/sources/tep.py) and reduced to its views (two gateway windows at 1.8 s, the recorded
+part at 36 s and at 180 s), what its loops and sticky valves did, cached per run;
+:func:`views` lists a reduced run's windows. lab/labels/tep.py labels them against the
+mode's normal runs."""
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-import pickle
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
@@ -14,9 +15,10 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from . import _corpus_label as lab
-from ._corpus_plan import TepRun
-from ._tep import LOOPS
+from .. import _cache
+from ..sources import tep
+from ..sources.tep import LOOPS, lagged, valve_command
+from ..sources.tep_plan import TepRun
 
 TEP_VERSION = "0.2.0"  # pyproject's bench extra pins it; the cache is keyed on it
 
@@ -32,6 +34,17 @@ NPERSEG = 4096  # Welch segments of 2 h for the spectra
 F_MAX = 1.0 / 30.0  # Hz: spectra kept up to periods of 30 s
 VALVE_TAU = 5.0  # s: the model's valve lag for XMV 7, 8, 10 and 11 (vtau)
 MIN_RECORD = 6.0  # h: a tripped run keeps its historian and study views if this long
+
+
+@dataclasses.dataclass(frozen=True)
+class LoopSummary:
+    """One loop over a run's recorded part: OP and PV SDs and spectra."""
+
+    op_sd: float
+    pv_sd: float
+    freqs: np.ndarray
+    op_psd: np.ndarray
+    pv_psd: np.ndarray
 
 
 def cache_key(run: TepRun) -> str:
@@ -52,8 +65,8 @@ def _valve(op: np.ndarray, pos: np.ndarray, band: float) -> dict[str, Any]:
     and its position at the gateway and historian views' samples."""
     a = float(np.exp(-TS / VALVE_TAU))
     start = float(pos[1] - a * pos[0]) / (1.0 - a)  # the command behind the first move
-    cmd = lab.valve_command(op, band, start=start)
-    err = np.abs(lab.lagged(cmd, TS, VALVE_TAU, float(pos[0])) - pos)[200:]
+    cmd = valve_command(op, band, start=start)
+    err = np.abs(lagged(cmd, TS, VALVE_TAU, float(pos[0])) - pos)[200:]
     f, p = _spectrum(pos)
     band_ok = f >= 1.0 / 7200.0
     # the cycle: the peak of the position's rate spectrum (f^2 p), flat for a random walk
@@ -66,17 +79,6 @@ def _valve(op: np.ndarray, pos: np.ndarray, band: float) -> dict[str, Any]:
             "pos_historian": pos[snap].astype(np.float32),
             "pos_gateway": {k: pos[round(at * 3600 / TS) :][:GATEWAY_N].astype(np.float32)
                             for k, at in enumerate(GATEWAY_AT)}}
-
-
-def valve_stats(v: dict[str, Any]) -> dict[str, lab.ValveStats]:
-    """A kept sticky valve's stats per gateway window and over the whole recorded part."""
-    cmd = lab.valve_command(v["op"].astype(np.float64), v["band"], start=v["start"])
-    stats = {"whole": lab.valve_stats(cmd, TS)}
-    for k, at in enumerate(GATEWAY_AT):
-        i = round(at * 3600 / TS)
-        if i + GATEWAY_N <= cmd.size:
-            stats[f"gateway{k}"] = lab.valve_stats(cmd[i : i + GATEWAY_N], TS)
-    return stats
 
 
 def reduce(run: TepRun, arrays: Any) -> dict[str, Any]:
@@ -105,7 +107,7 @@ def reduce(run: TepRun, arrays: Any) -> dict[str, Any]:
     for j in range(op.shape[0]):
         f, p_op = _spectrum(op[j])
         _, p_pv = _spectrum(pv[j])
-        out["summary"].append(lab.LoopSummary(float(op[j].std()), float(pv[j].std()), f,
+        out["summary"].append(LoopSummary(float(op[j].std()), float(pv[j].std()), f,
                                               p_op, p_pv))
     bands = run.bands
     out["valves"] = {j: _valve(op[j], arrays.pos[:, j], bands[lp.xmv])
@@ -118,46 +120,38 @@ def build(runs: Iterable[TepRun], cache: Path, log: Callable[[str], None]) -> in
     a time (settled modes cached too); returns how many were simulated."""
     from importlib.metadata import version  # noqa: PLC0415
 
-    from . import _tep  # noqa: PLC0415
-
     if version("tep-studio") != TEP_VERSION:
         raise RuntimeError(f"the corpus is made with tep-studio {TEP_VERSION}, "
                            f"{version('tep-studio')} is installed (make corpus installs it)")
     cache.mkdir(parents=True, exist_ok=True)
-    settled: dict[str, Any] = {}
+    starts: dict[str, tep.Settled] = {}
     done = 0
     for run in runs:
         path = cache / f"{run.id}-{cache_key(run)}.pickle"
         if path.exists():
             continue
-        if run.mode not in settled:
-            settled[run.mode] = _settled(run.mode, cache)
-        arrays = _tep.run(settled[run.mode], run.seed, run.idvs, run.bands,
-                          onset_h=ONSET_H, record_h=RECORD_H)
-        _write(path, reduce(run, arrays))
+        if run.mode not in starts:
+            starts[run.mode] = settled(run.mode, cache)
+        arrays = tep.run(starts[run.mode], run.seed, run.idvs, run.bands,
+                         onset_h=ONSET_H, record_h=RECORD_H)
+        _cache.dump(reduce(run, arrays), path)
         done += 1
         log(f"  {run.id}: {arrays.t.size} samples{'; ' + arrays.tripped if arrays.tripped else ''}")
     return done
 
 
-def _settled(mode: str, cache: Path) -> Any:
-    from . import _tep  # noqa: PLC0415
-
-    key = hashlib.sha256(repr((mode, _tep.SETTLE_H, CACHE_VERSION, TEP_VERSION)).encode())
+def settled(mode: str, cache: Path | None = None) -> tep.Settled:
+    """``mode`` after its settling run (lab/sources/tep.py), cached in ``cache`` (the built
+    corpus's TEP folder if None)."""
+    cache = _cache.corpus() / "tep" if cache is None else cache
+    key = hashlib.sha256(repr((mode, tep.SETTLE_H, CACHE_VERSION, TEP_VERSION)).encode())
     path = cache / f"settled-{mode}-{key.hexdigest()[:12]}.pickle"
     if path.exists():
-        with path.open("rb") as fh:
-            return pickle.load(fh)
-    settled = _tep.settle(mode)
-    _write(path, settled)
-    return settled
-
-
-def _write(path: Path, obj: Any) -> None:
-    tmp = path.with_suffix(".tmp")
-    with tmp.open("wb") as fh:
-        pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
-    tmp.replace(path)  # an interrupted build leaves no half-written run
+        out: tep.Settled = _cache.load(path)
+        return out
+    start = tep.settle(mode)
+    _cache.dump(start, path)
+    return start
 
 
 def load(runs: Iterable[TepRun], cache: Path) -> list[dict[str, Any]]:
@@ -166,6 +160,16 @@ def load(runs: Iterable[TepRun], cache: Path) -> list[dict[str, Any]]:
     for run in runs:
         path = cache / f"{run.id}-{cache_key(run)}.pickle"
         if path.exists():
-            with path.open("rb") as fh:
-                out.append(pickle.load(fh))
+            out.append(_cache.load(path))
+    return out
+
+
+def views(d: dict[str, Any]) -> list[tuple[str, str, float, float, np.ndarray, np.ndarray]]:
+    """(view, stats key, ts, t0, op rows, pv rows) of every view the run kept."""
+    out = [("gateway", f"gateway{k}", TS, RECORD_H[0] + GATEWAY_AT[k], op, pv)
+           for k, (op, pv) in d["gateway"].items()]
+    if "historian" in d:
+        h, s = d["historian"], d["study"]
+        out.append(("historian", "whole", TS * HISTORIAN, RECORD_H[0], h["op"], h["pv"]))
+        out.append(("study", "whole", TS * STUDY, RECORD_H[0], s["op"], s["pv"]))
     return out

@@ -1,0 +1,79 @@
+"""The lab's commands (``python -m lab NAME``): ``corpus`` builds the development corpus and
+prints it (``make corpus``), ``train [--write]`` trains and validates the decision
+(``--write`` writes stiction/diagnosis/model.json), ``calibrate [--write]`` fits the
+weighted vote (``--write`` writes stiction/diagnosis/weights.py). The benchmarks' old names
+(``python -m bench corpus``, ``python -m bench.train``, ``python -m bench calibrate``) run
+them too (bench/corpus.py, bench/train.py, bench/calibrate.py)."""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Sequence
+
+USAGE = "usage: python -m lab {corpus | train [--write] | calibrate [--write]}"
+
+
+def corpus(argv: Sequence[str] = ()) -> None:
+    """Build what the corpus lacks, then print it per source and cause class."""
+    from .labels import corpus as built  # each command loads only what it needs
+
+    built.main()
+
+
+def train(argv: Sequence[str] = ()) -> None:
+    """Train on the corpus and the named scenarios, print the held-out validation."""
+    from stiction.diagnosis.features import NAMES
+
+    from .export import model
+    from .features.rows import rows, training_windows
+    from .training import fit, report
+
+    t0 = time.perf_counter()
+    windows = training_windows()
+    if not windows:
+        print("train: the corpus is empty: run python -m lab corpus first")
+        return
+    rs = rows(windows)
+    print(f"== train: {len(rs)} windows ({time.perf_counter() - t0:.0f} s to load and "
+          f"analyse), {len(NAMES)} features ==")
+    fitted = fit.train(rs)
+    data = model.model_data(fitted)
+    report.report(rs, fitted.held_out, fitted.stiction_at)
+    if "--write" in argv:
+        model.write(data)
+        print(f"wrote {model.MODEL} ({data['meta']})")
+
+
+def calibrate(argv: Sequence[str] = ()) -> None:
+    """Fit the weighted vote (lab/training/calibrate.py), print its held-out folds."""
+    from stiction.diagnosis.combine import STICTION_CONFIDENCE
+
+    from .export.weights import WEIGHTS_FILE, write_weights
+    from .training.calibrate import GROUP_NAMES, cross_validate, fit, load
+
+    t0 = time.perf_counter()
+    t = load()
+    print(f"== calibration: {len(t.cases)} windows, test groups {', '.join(GROUP_NAMES)} "
+          f"({time.perf_counter() - t0:.0f} s to gather) ==")
+    cross_validate(t, STICTION_CONFIDENCE)
+    beta = fit(t)
+    print(f"  fit on all data: bias {beta[0]:+.2f}; per test (+vote weight / -vote weight):")
+    k = len(GROUP_NAMES)
+    for i, name in enumerate(GROUP_NAMES):
+        print(f"    {name:<14} {beta[1 + i]:5.2f} / {beta[1 + k + i]:5.2f}")
+    if "--write" in argv:
+        write_weights(beta, GROUP_NAMES)
+        print(f"  wrote {WEIGHTS_FILE}")
+
+
+COMMANDS: dict[str, Callable[[Sequence[str]], None]] = {
+    "corpus": corpus, "train": train, "calibrate": calibrate}
+
+
+def main(argv: Sequence[str]) -> int:
+    if not argv or argv[0] not in COMMANDS:
+        print(USAGE, file=sys.stderr)
+        return 2
+    COMMANDS[argv[0]](argv[1:])
+    return 0

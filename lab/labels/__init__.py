@@ -1,0 +1,2 @@
+"""Each window's cause class, measured from the data (``rules``, ``tep``), and the labelled
+corpus every later room reads (``corpus``)."""

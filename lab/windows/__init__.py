@@ -1,0 +1,1 @@
+"""Runs cut into the windows the corpus keeps, one view per sample time (``tep``)."""

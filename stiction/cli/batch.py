@@ -1,0 +1,245 @@
+"""``stiction analyze a.csv b.csv ...`` or ``--manifest LIST``: a whole unit in one command.
+
+Every file is analysed as ``stiction analyze FILE`` analyses it alone (:func:`.loop.
+analyze_file`, the same options, the same dict :func:`.loop.view`); a file that cannot be
+read, or a manifest row that cannot be used, is listed with its error and the others are
+analysed. Outputs: one row per loop on a terminal (file, verdict, confidence, fd, fs, unit,
+period, the reason in short), ``--json`` one JSON array of each file's ``--json`` object with
+its ``file`` (``{"file": ..., "error": ...}`` for a file not analysed), ``--csv OUT`` the
+same objects flattened for a spreadsheet (:func:`flatten`), ``--plot DIR`` one PNG per file.
+Exit 0 if any loop was analysed, else 2; the errors are counted on stderr, and a progress
+bar runs there when it is a terminal."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import json
+import re
+import shutil
+import sys
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any, TextIO
+
+from .._errors import ParameterError, StictionError
+from ._common import UsageError, param_option, pyplot
+from .loop import LoopOptions, analyze_file
+from .manifest import COLUMNS, Loop, read_manifest
+from .plot import plot_analysis
+
+__all__ = ["COLUMNS", "Row", "flatten", "run", "table", "write_csv"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One file of the batch: what ``--json`` shows of it alone, or why it was not analysed."""
+
+    file: Path | str
+    shown: Mapping[str, Any] | None = None
+    error: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON array's object: ``file`` and the single-file ``--json`` keys, or
+        ``file`` and ``error``."""
+        if self.shown is None:
+            return {"file": str(self.file), "error": self.error}
+        return {"file": str(self.file), **self.shown}
+
+
+def run(args: argparse.Namespace) -> int:
+    """The batch: every file of the command line, then every loop of ``--manifest``."""
+    base = LoopOptions.from_args(args)
+    loops = [Loop(str(p), p, base) for p in args.files]
+    if args.manifest is not None:
+        loops += read_manifest(args.manifest, base)
+    if args.csv is not None and not args.csv.parent.is_dir():
+        raise UsageError(f"--csv {args.csv}: no folder {args.csv.parent}")
+    plots = None if args.plot is None else _plot_names(args.plot, loops)
+    bar = Progress(len(loops)) if sys.stderr.isatty() else None
+    rows = []
+    for i, loop in enumerate(loops):
+        if bar is not None:
+            bar.show(i, loop.label)
+        rows.append(_one(loop, None if plots is None else plots[i]))
+    if bar is not None:
+        bar.clear()
+    if args.json:
+        print(json.dumps([r.to_dict() for r in rows]))
+    else:
+        print(table(rows, width=shutil.get_terminal_size((120, 24)).columns))
+    if args.csv is not None:
+        write_csv(args.csv, rows)
+    for done in (args.plot, args.csv):
+        if done is not None and not args.json:
+            print(f"wrote {done}")
+    failed = sum(r.error is not None for r in rows)
+    if failed == len(rows):
+        print(f"stiction: error: none of {len(rows)} files analysed", file=sys.stderr)
+        return 2
+    if failed:
+        print(f"stiction: {failed} of {len(rows)} files not analysed (their errors are listed)",
+              file=sys.stderr)
+    return 0
+
+
+def _one(loop: Loop, plot: Path | None) -> Row:
+    """One loop analysed, or its error (the message ``stiction analyze FILE`` would print)."""
+    if loop.error is not None:
+        return Row(loop.label, error=loop.error)
+    try:
+        got = analyze_file(loop.path, loop.options)
+        if plot is not None:
+            plot_analysis(plot, got.details, got.ts, got.op_range, got.clock)
+    except ParameterError as exc:
+        return Row(loop.label, error=f"{param_option(exc.name)}: {exc}")
+    except (UsageError, StictionError) as exc:
+        return Row(loop.label, error=str(exc))
+    except Exception as exc:  # a bug on one file: the unit's other loops are still analysed
+        return Row(loop.label, error=f"internal error ({type(exc).__name__}: {exc}); please "
+                                     "report it with this file")
+    return Row(loop.label, got.shown)
+
+
+def _plot_names(folder: Path, loops: Sequence[Loop]) -> list[Path]:
+    """One PNG per file in ``folder`` (made if missing), named by the file's stem; a stem
+    that repeats gets ``-2``, ``-3``, ..."""
+    pyplot()  # refused now, not after the files, when matplotlib is missing
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"--plot {folder}: with several files, --plot names a folder (one "
+                         "PNG per file); this is a file")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"--plot {folder}: cannot make the folder: {exc.strerror or exc}"
+                         ) from exc
+    seen: dict[str, int] = {}
+    out = []
+    for loop in loops:
+        stem = loop.path.stem if loop.error is None else "error"
+        seen[stem] = seen.get(stem, 0) + 1
+        out.append(folder / (f"{stem}.png" if seen[stem] == 1 else f"{stem}-{seen[stem]}.png"))
+    return out
+
+
+class Progress:
+    """A progress bar on stderr (a terminal), overwritten in place and cleared at the end."""
+
+    WIDTH = 24
+
+    def __init__(self, total: int, stream: TextIO | None = None) -> None:
+        self.total = total
+        self.stream = sys.stderr if stream is None else stream
+        self.last = 0
+
+    def show(self, done: int, label: str) -> None:
+        filled = self.WIDTH * done // max(self.total, 1)
+        text = f"analysing {done + 1:>{len(str(self.total))}}/{self.total} " \
+               f"[{'#' * filled}{'.' * (self.WIDTH - filled)}] {label}"[:119]
+        self.stream.write("\r" + text.ljust(self.last))
+        self.stream.flush()
+        self.last = len(text)
+
+    def clear(self) -> None:
+        self.stream.write("\r" + " " * self.last + "\r")
+        self.stream.flush()
+
+
+# ------------------------------------------------------------------------- the table
+HEAD = ("file", "verdict", "conf", "fd", "fs", "unit", "period", "reason")
+_OPENING = re.compile(r"^(?:stiction|not stiction|undetermined), confidence(?: of stiction)? "
+                      r"[\d.]+[.:]\s*")
+
+
+def short_reason(reason: str) -> str:
+    """The reason without its opening (the verdict and confidence, columns of their own),
+    to its first sentence."""
+    text = _OPENING.sub("", reason)
+    end = text.find(". ")
+    return text if end < 0 else text[: end + 1]
+
+
+def _cells(row: Row) -> list[str]:
+    if row.shown is None:
+        error = row.error or ""
+        prefix = f"{row.file}: "
+        return [str(row.file), "error", "-", "-", "-", "-", "-",
+                error[len(prefix):] if error.startswith(prefix) else error]
+    s = row.shown
+    size = s.get("size") or {}
+
+    def num(x: Any) -> str:
+        return "-" if x is None else f"{x:.3g}"
+
+    period = "-" if s.get("period_s") is None else f"{s['period_s']:.0f} s"
+    conf = "-" if s.get("confidence") is None else f"{s['confidence']:.2f}"
+    return [str(row.file), str(s["verdict"]), conf, num(size.get("fd")), num(size.get("fs")),
+            size.get("unit", "-"), period, short_reason(str(s["reason"]))]
+
+
+def table(rows: Iterable[Row], *, width: int = 120) -> str:
+    """One line per loop under a header, columns aligned; the reason cut to fit ``width``
+    (the terminal's) with '...' (the whole reason is in --json and --csv)."""
+    lines = [list(HEAD), *(_cells(r) for r in rows)]
+    widths = [max(len(line[j]) for line in lines) for j in range(len(HEAD) - 1)]
+    left = {0, 1, 5}
+    room = max(30, width - sum(widths) - 2 * len(widths) - 1)
+    out = []
+    for line in lines:
+        cells = [c.ljust(w) if j in left else c.rjust(w)
+                 for j, (c, w) in enumerate(zip(line, widths, strict=False))]
+        reason = line[-1] if len(line[-1]) <= room else line[-1][: room - 3] + "..."
+        out.append("  ".join([*cells, reason]).rstrip())
+    return "\n".join(out)
+
+
+# --------------------------------------------------------------------------- the CSV
+FIRST = ("file", "error", "verdict", "confidence", "size.unit", "size.fd", "size.fs",
+         "size.jump", "period_s", "reason")
+"""The CSV's first columns, always there; the other keys follow as they first appear."""
+
+
+def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """A ``--json`` object as one spreadsheet row: nested objects as ``size.fd``,
+    ``weighed.kano``, ``stretch.from``; the evidence by test as ``evidence.kano.value``,
+    ``.vote``, ``.note``; a list of texts (the warnings) joined by `` | ``; an object that
+    is null (no size, no stretch) leaves its columns empty."""
+    out: dict[str, Any] = {}
+    for key, value in d.items():
+        name = prefix + key
+        if isinstance(value, Mapping):
+            out.update(flatten(value, name + "."))
+        elif key == "evidence" and isinstance(value, list):
+            for e in value:
+                out.update(flatten({k: v for k, v in e.items() if k != "test"},
+                                   f"{name}.{e['test']}."))
+        elif isinstance(value, list):
+            out[name] = " | ".join(str(v) for v in value)
+        elif value is not None or key not in ("size", "stretch"):
+            out[name] = value
+    return out
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def write_csv(path: Path, rows: Sequence[Row]) -> None:
+    """The rows flattened (:func:`flatten`) to ``path``: UTF-8 with a byte-order mark, as a
+    spreadsheet reads it; floats written in full (``repr``), null and absent keys empty."""
+    flat = [flatten(r.to_dict()) for r in rows]
+    columns = list(FIRST)
+    for f in flat:
+        columns += [k for k in f if k not in columns]
+    try:
+        with path.open("w", newline="", encoding="utf-8-sig") as fh:
+            w = csv.writer(fh)
+            w.writerow(columns)
+            w.writerows([_cell(f.get(c)) for c in columns] for f in flat)
+    except OSError as exc:
+        raise UsageError(f"--csv {path}: cannot write: {exc.strerror or exc}") from exc

@@ -1,0 +1,208 @@
+"""One loop's file analysed: how it is read (:class:`LoopOptions`), what ``stiction analyze``
+shows of it (:func:`analyze_file`, :func:`view`), for one file and for a batch
+(:mod:`.batch`) alike.
+
+Besides the assessment it holds what weighed most in the decision (the learned decision's
+parts, which are not votes: :mod:`stiction.diagnosis.reasons`) and, where the window cycles
+only in bursts, the stretch that cycles (:mod:`stiction.diagnosis.stretch`) in the file's own
+time, with the ``--from``/``--to`` that analyse it alone."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime as dt
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._assessment import Assessment, Verdict
+from ..diagnosis.analyze import Details, analyze_details
+from ..diagnosis.stretch import Stretch, regular_stretch
+from . import historian
+from ._common import UsageError
+from .plot import Clock, window_clock
+
+__all__ = ["Analysed", "FileTime", "LoopOptions", "analyze_file", "bursts", "view"]
+
+
+@dataclasses.dataclass(frozen=True)
+class LoopOptions:
+    """How one file is read and analysed: the command line's options (:meth:`from_args`),
+    or a manifest row's cells over them (:mod:`.batch`). Every per-file option is a field
+    here, so that a new one flows through the command line and the manifest alike."""
+
+    op: str = "op"
+    pv: str = "pv"
+    time: str | None = None
+    ts: float | None = None
+    kp: float | None = None
+    delay: float = 0.0
+    process: str = "self-regulating"
+    op_range: tuple[float, float] | None = None
+    start: str | None = None  # --from
+    stop: str | None = None  # --to
+    decimal: str | None = None
+    tz: dt.tzinfo | None = None
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> LoopOptions:
+        """The options ``stiction analyze`` was given (every field's namesake in ``args``)."""
+        got = {f.name: getattr(args, f.name) for f in dataclasses.fields(cls)}
+        if got["op_range"] is not None:
+            got["op_range"] = (float(got["op_range"][0]), float(got["op_range"][1]))
+        return cls(**got)
+
+
+@dataclasses.dataclass(frozen=True)
+class Analysed:
+    """One file analysed: ``shown`` what ``--json`` prints (:func:`view`), the assessment
+    with the file's notes among its warnings, the details for a plot, the sample time, the
+    OP range and the plot's clock (the file's own time)."""
+
+    shown: dict[str, Any]
+    assessment: Assessment
+    details: Details
+    ts: float
+    op_range: tuple[float, float] | None
+    clock: Clock
+
+
+def analyze_file(path: Path, o: LoopOptions) -> Analysed:
+    """Read ``path`` as ``o`` says (:mod:`.historian`) and analyse its window; unusable input
+    raises :class:`~stiction.cli._common.UsageError` naming it, a bad option value
+    :class:`~stiction.ParameterError`."""
+    table = historian.read_table(path, decimal=o.decimal, tz=o.tz)
+    notes = list(table.notes)
+    op_col = historian.column(table, o.op, "--op")
+    pv_col = historian.column(table, o.pv, "--pv")
+    if o.time is not None:
+        t_col: int | None = historian.column(table, o.time, "--time")
+    elif o.ts is None:
+        t_col = historian.time_column(table)
+        if t_col is None:
+            raise UsageError(f"{path}: no time column 't' (columns: "
+                             f"{', '.join(table.header)}); give --time COL or --ts S")
+    else:
+        t_col = None
+    if len(table.rows) < 2:
+        raise UsageError(f"{path}: {len(table.rows)} samples, need at least 2")
+    op, op_note = historian.numbers(table, op_col)
+    pv, pv_note = historian.numbers(table, pv_col)
+    notes += [n for n in (op_note, pv_note) if n]
+    t = None if t_col is None else historian.times(table, t_col)
+    if t is not None and t_col is not None:
+        ts, op, pv, grid = historian.on_grid(path, table.header[t_col], t, op, pv)
+        notes += grid
+    else:
+        assert o.ts is not None
+        ts = o.ts
+    secs = np.arange(len(table.rows)) * ts if t is None else t.seconds
+    clock = FileTime(table, t_col, secs, ts)
+    first, op, pv = clock.cut(o, op, pv)
+    shown_from = window_clock(t, ts, op, pv)  # the plot's axis: the file's time
+    shown_from = dataclasses.replace(shown_from, start=shown_from.start + first * ts)
+    d = analyze_details(op, pv, ts=ts, kp=o.kp, delay=o.delay, process=o.process,
+                        op_range=o.op_range)
+    a = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
+    stretch = bursts(d)
+    if stretch is not None:
+        a = dataclasses.replace(a, reason=a.reason + stretch.reason(ts))
+    shown = view(a, d, clock.stretch(stretch, first + d.start) if stretch else None)
+    return Analysed(shown, a, d, ts, o.op_range, shown_from)
+
+
+def bursts(d: Details) -> Stretch | None:
+    """The stretch that cycles, where the window's verdict rests on a cycle it found
+    irregular (:func:`~stiction.diagnosis.stretch.regular_stretch`), and the stretch is a
+    real part of the window; else None."""
+    if d.op is None or d.pv is None or d.cycle is None or d.cycle.regular or \
+            d.assessment.verdict not in BURST_VERDICTS:
+        return None
+    st = regular_stretch(d.op, d.pv)
+    if st is None or st.stop - st.start > PART * d.op.size:
+        return None
+    return st
+
+
+BURST_VERDICTS = (Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED,
+                  Verdict.NOT_OSCILLATING)
+PART = 0.8
+"""A stretch longer than this share of the window is the window: no hint."""
+
+
+@dataclasses.dataclass(frozen=True)
+class FileTime:
+    """The file's own time for the samples: ``t`` (seconds) per row, ``ts`` the grid's
+    sample time; the time column ``col`` of ``table`` (None: rows every ``ts`` from 0)."""
+
+    table: historian.Table
+    col: int | None
+    t: np.ndarray
+    ts: float
+
+    def seconds(self, text: str, option: str) -> float:
+        """``--from``/``--to``'s value in the file's seconds."""
+        if self.col is None:
+            try:
+                return float(text)
+            except ValueError:
+                raise UsageError(f"{option} {text!r}: with --ts give seconds from the first "
+                                 "row") from None
+        row = [""] * len(self.table.header)
+        row[self.col] = text
+        one = dataclasses.replace(self.table, rows=[row], lines=[0])
+        try:
+            return float(historian.times(one, self.col).seconds[0])
+        except UsageError:
+            raise UsageError(f"{option} {text!r}: not a time as the file writes them "
+                             f"(e.g. {self.text(0)!r})") from None
+
+    def cut(self, o: LoopOptions, op: np.ndarray, pv: np.ndarray
+            ) -> tuple[int, np.ndarray, np.ndarray]:
+        """The samples between ``--from`` and ``--to`` (index of the first, op, pv)."""
+        if o.start is None and o.stop is None:
+            return 0, op, pv
+        grid = self.t[0] + np.arange(op.size) * self.ts
+        lo = -np.inf if o.start is None else self.seconds(o.start, "--from")
+        hi = np.inf if o.stop is None else self.seconds(o.stop, "--to")
+        keep = np.flatnonzero((grid >= lo - self.ts / 4) & (grid <= hi + self.ts / 4))
+        if keep.size < 2:
+            raise UsageError(f"--from/--to: {keep.size} samples between them (the file runs "
+                             f"from {self.text(0)!r} to {self.text(op.size - 1)!r})")
+        return int(keep[0]), op[keep[0] : keep[-1] + 1], pv[keep[0] : keep[-1] + 1]
+
+    def text(self, k: int) -> str:
+        """Sample ``k``'s time as the file wrote it (the nearest row's stamp)."""
+        at = self.t[0] + k * self.ts
+        if self.col is None:
+            return f"{at:g}"
+        i = int(np.argmin(np.abs(self.t - at)))
+        return self.table.rows[i][self.col].strip()
+
+    def stretch(self, st: Stretch, first: int) -> dict[str, Any]:
+        """The stretch in the file's time (``first``: the window's first sample)."""
+        return {"from": self.text(first + st.start), "to": self.text(first + st.stop - 1),
+                "source": st.source, "period_s": st.period * self.ts,
+                "regularity": st.regularity}
+
+
+SIZE_FIELDS = ("fd", "fs", "jump", "fd_op", "fs_op", "cycles_used")
+
+
+def view(a: Assessment, d: Details | None = None, stretch: dict[str, Any] | None = None
+         ) -> dict[str, Any]:
+    """What ``analyze`` prints: the assessment's fields with the sizes in one unit under
+    ``size`` (:meth:`stiction.Assessment.sizes`: unit, fd, fs, jump and, when read from
+    the limit cycle, cycles_used; None when not sized) instead of fractions beside OP
+    units; ``weighed``: what weighed in the decision, strongest first (``d.parts``: each
+    entry's part of the log-odds, + for stiction; not votes); ``stretch``: the stretch to
+    analyse alone, in the file's time, or None."""
+    out = {k: v for k, v in a.to_dict().items() if k not in SIZE_FIELDS}
+    sizes = a.sizes()
+    out["size"] = None if sizes is None else sizes.to_dict()
+    parts = {} if d is None or d.parts is None else d.parts
+    out["weighed"] = dict(sorted(parts.items(), key=lambda kv: -abs(kv[1])))
+    out["stretch"] = stretch
+    return out
