@@ -44,6 +44,10 @@ def add_analyze(sub: Subparsers) -> None:
                    "to it")
     p.add_argument("--op", default="op", help="OP column (default op; any case)")
     p.add_argument("--pv", default="pv", help="PV column (default pv; any case)")
+    p.add_argument("--position", default=None, metavar="COL",
+                   help="the valve's position column, in OP's units (a smart positioner's "
+                   "travel): stiction is then measured from it (band and slip) instead of "
+                   "inferred from PV; unusable (gaps, never reverses): OP and PV decide")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--time", default=None, help="time column: seconds or date-times "
                    "(default: t, time, timestamp, datetime, date time or date)")
@@ -103,8 +107,8 @@ def _print(a: Assessment, shown: dict[str, Any]) -> None:
                        "stretch"} and val is not None:
             print(f"  {key}: {val:.4g}" if isinstance(val, float) else f"  {key}: {val}")
     size = shown["size"]
-    for key in ("fd", "fs", "jump") if size else ():
-        if size[key] is not None:
+    for key in ("fd", "fs", "jump", "band", "slip") if size else ():
+        if size.get(key) is not None:
             print(f"  {key}: {size[key]:.4g} {size['unit']}")
     if size and "cycles_used" in size:
         print(f"  cycles_used: {size['cycles_used']} (limit cycles whose jumps were read)")

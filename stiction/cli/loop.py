@@ -35,6 +35,7 @@ class LoopOptions:
 
     op: str = "op"
     pv: str = "pv"
+    position: str | None = None  # the valve's position column (OP units): the travel decides
     time: str | None = None
     ts: float | None = None
     kp: float | None = None
@@ -91,9 +92,17 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
     op, op_note = historian.numbers(table, op_col)
     pv, pv_note = historian.numbers(table, pv_col)
     notes += [n for n in (op_note, pv_note) if n]
+    pos: np.ndarray | None = None
+    if o.position is not None:
+        pos, pos_note = historian.numbers(table, historian.column(table, o.position,
+                                                                  "--position"))
+        notes += [pos_note] if pos_note else []
     t = None if t_col is None else historian.times(table, t_col)
     if t is not None and t_col is not None:
-        ts, op, pv, grid = historian.on_grid(path, table.header[t_col], t, op, pv)
+        ts, series, grid = historian.grid(path, table.header[t_col], t,
+                                          (op, pv) if pos is None else (op, pv, pos))
+        op, pv = series[0], series[1]
+        pos = None if pos is None else series[2]
         notes += grid
     else:
         assert o.ts is not None
@@ -101,10 +110,12 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
     secs = np.arange(len(table.rows)) * ts if t is None else t.seconds
     clock = FileTime(table, t_col, secs, ts)
     first, op, pv = clock.cut(o, op, pv)
+    if pos is not None:
+        pos = pos[first:first + op.size]
     shown_from = window_clock(t, ts, op, pv)  # the plot's axis: the file's time
     shown_from = dataclasses.replace(shown_from, start=shown_from.start + first * ts)
     d = analyze_details(op, pv, ts=ts, kp=o.kp, delay=o.delay, process=o.process,
-                        op_range=o.op_range)
+                        op_range=o.op_range, position=pos)
     a = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
     stretch = bursts(d)
     if stretch is not None:
@@ -188,7 +199,7 @@ class FileTime:
                 "regularity": st.regularity}
 
 
-SIZE_FIELDS = ("fd", "fs", "jump", "fd_op", "fs_op", "cycles_used")
+SIZE_FIELDS = ("fd", "fs", "jump", "fd_op", "fs_op", "cycles_used", "band", "band_op")
 
 
 def view(a: Assessment, d: Details | None = None, stretch: dict[str, Any] | None = None
