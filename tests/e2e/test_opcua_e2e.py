@@ -18,9 +18,11 @@ from gateway.core.points import Quality
 from gateway.errors import ConfigError
 from gateway.runtime.gateway import Gateway
 from plcsim import PlcSim, gateway_config, load_sim_config
+from stiction.diagnosis.travel import MEASURED
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(90)]
 FAKE = "opcua_fake_analyze:analyze"
+SLIP = 1.99 * (0.30 - 0.27)  # He's slip J = K (fs - fd) of table4-case2's valve
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +66,8 @@ def gateway_yaml(sim_path: Path, gw_path: Path, port: int, pki: Pki) -> None:
 def test_plcsim_to_gateway_over_secure_opcua(pki: Pki, tmp_path: Path) -> None:
     """As the Modbus end-to-end test, over OPC UA: the real stiction.analyze in worker
     processes calls the sticky loop `stiction` with fd and fs within 10 % of the simulated
-    valve's (0.27, 0.30) and the healthy loop not oscillating."""
+    valve's (0.27, 0.30), measured from the valve's position read as a third node, and the
+    healthy loop not oscillating."""
     sim_path, gw_path = write_configs(pki, tmp_path)
 
     async def main() -> None:
@@ -92,6 +95,14 @@ def test_plcsim_to_gateway_over_secure_opcua(pki: Pki, tmp_path: Path) -> None:
                 a = sticky.assessment
                 assert a.fd == pytest.approx(0.27, rel=0.10)
                 assert a.fs == pytest.approx(0.30, rel=0.10)
+                # issue 30: the valve's position read over OPC UA (plc-sim's FIC101.POS), the
+                # loop decided from its travel: band 2 fs - J and slip J = K (fs - fd) of He's
+                # valve (fs 0.30, fd 0.27, K 1.99) within 10 %
+                assert cfg.loops[0].position is not None
+                assert "FIC101.POS" in str(cfg.loops[0].position.address)
+                assert MEASURED in a.reason
+                assert a.jump == pytest.approx(SLIP, rel=0.10)
+                assert a.band == pytest.approx(2 * 0.30 - SLIP, rel=0.10)
                 # the latest samples are the simulated ones (float64 over OPC UA)
                 assert np.all(np.isfinite(gw.store.latest_op))
                 assert np.all(np.abs(gw.store.latest_pv - 50.0) < 10.0)
