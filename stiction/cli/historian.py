@@ -31,7 +31,7 @@ from ._common import UsageError
 from .grid import Stamps, grid, on_grid
 
 __all__ = ["TIME_COLUMNS", "Stamps", "Table", "add_reading_options", "column", "grid",
-           "numbers", "on_grid", "read_table", "times", "write_export"]
+           "numbers", "on_grid", "read_table", "time_choice", "times", "write_export"]
 
 DELIMITERS = (",", ";", "\t")
 TIME_COLUMNS = ("t", "time", "timestamp", "datetime", "date time", "date")
@@ -189,6 +189,21 @@ def time_column(table: Table) -> int | None:
     """The first of :data:`TIME_COLUMNS` the header has (any case), or None."""
     folded = [h.casefold() for h in table.header]
     return next((folded.index(n) for n in TIME_COLUMNS if n in folded), None)
+
+
+def time_choice(table: Table, time: str | None, ts: float | None) -> int | None:
+    """The time column a command reads: ``--time COL`` where given, else with no ``--ts``
+    the first of :data:`TIME_COLUMNS` (:func:`time_column`; none: a usage error naming the
+    columns), else None (rows every ``--ts`` seconds)."""
+    if time is not None:
+        return column(table, time, "--time")
+    if ts is not None:
+        return None
+    t_col = time_column(table)
+    if t_col is None:
+        raise UsageError(f"{table.path}: no time column 't' (columns: "
+                         f"{', '.join(table.header)}); give --time COL or --ts S")
+    return t_col
 
 
 def _cells(table: Table, col: int) -> list[str]:

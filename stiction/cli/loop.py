@@ -78,15 +78,7 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
     notes = list(table.notes)
     op_col = historian.column(table, o.op, "--op")
     pv_col = historian.column(table, o.pv, "--pv")
-    if o.time is not None:
-        t_col: int | None = historian.column(table, o.time, "--time")
-    elif o.ts is None:
-        t_col = historian.time_column(table)
-        if t_col is None:
-            raise UsageError(f"{path}: no time column 't' (columns: "
-                             f"{', '.join(table.header)}); give --time COL or --ts S")
-    else:
-        t_col = None
+    t_col = historian.time_choice(table, o.time, o.ts)
     if len(table.rows) < 2:
         raise UsageError(f"{path}: {len(table.rows)} samples, need at least 2")
     op, op_note = historian.numbers(table, op_col)

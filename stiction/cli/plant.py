@@ -83,15 +83,7 @@ def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, 
                                              dict[str, np.ndarray], list[str]]:
     table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     notes = list(table.notes)
-    if args.time is not None:
-        t_col: int | None = historian.column(table, args.time, "--time")
-    elif args.ts is None:
-        t_col = historian.time_column(table)
-        if t_col is None:
-            raise UsageError(f"{args.file}: no time column (columns: {', '.join(table.header)})"
-                             "; give --time COL or --ts S")
-    else:
-        t_col = None
+    t_col = historian.time_choice(table, args.time, args.ts)
     header = [h for i, h in enumerate(table.header) if i != t_col]
     cols = [i for i in range(len(table.header)) if i != t_col]
     loops, others = loop_columns(header)

@@ -60,15 +60,7 @@ def _read(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, float, list
         y_col = historian.column(table, args.position, "--position")
     else:
         y_col = historian.column(table, args.pv or "pv", "--pv")
-    if args.time is not None:
-        t_col: int | None = historian.column(table, args.time, "--time")
-    elif args.ts is None:
-        t_col = historian.time_column(table)
-        if t_col is None:
-            raise UsageError(f"{args.file}: no time column 't' (columns: "
-                             f"{', '.join(table.header)}); give --time COL or --ts S")
-    else:
-        t_col = None
+    t_col = historian.time_choice(table, args.time, args.ts)
     if len(table.rows) < 2:
         raise UsageError(f"{args.file}: {len(table.rows)} samples, need at least 2")
     op, op_note = historian.numbers(table, op_col)
