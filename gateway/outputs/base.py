@@ -65,7 +65,7 @@ def write_atomically(path: str | os.PathLike[str], write: Callable[[BinaryIO], N
     """Write a file so that a crash (even SIGKILL) leaves the old one or the new one:
     ``write(f)`` fills a temporary file in the same folder (``.NAME.tmp-PID``), which is
     ``fsync``'d and renamed over ``path``, then the folder is ``fsync``'d. Returns the
-    bytes written. (The state file does the same in its own module.)"""
+    bytes written (the state file and the verdict history both write so)."""
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = target.with_name(f".{target.name}.tmp-{os.getpid()}")

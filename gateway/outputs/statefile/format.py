@@ -38,7 +38,6 @@ and every field is checked (:mod:`.validate`) before anything is restored.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import math
@@ -56,6 +55,7 @@ from ...config.model import Config
 from ...core.points import Quality
 from ...core.store import ResultStore
 from ...core.windows import LoopGroup, loop_signature, result_signature
+from ..base import write_atomically
 from .validate import check_header
 
 __all__ = ["FORMAT", "VERSION", "StateError", "read_state", "set_aside", "snapshot",
@@ -118,29 +118,11 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
 
 def write_state(path: str | os.PathLike[str], header: Mapping[str, Any],
                 arrays: Mapping[str, NDArray[Any]]) -> int:
-    """Write atomically (tmp + fsync + rename + fsync dir); returns the bytes written."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(f".{target.name}.tmp-{os.getpid()}")
+    """Write atomically (:func:`gateway.outputs.base.write_atomically`: tmp + fsync + rename
+    + fsync dir); returns the bytes written."""
     blob = np.frombuffer(json.dumps(header, allow_nan=True).encode(), dtype=np.uint8)
-    try:
-        with open(tmp, "wb") as f:
-            np.savez(f, header=blob, **arrays)  # type: ignore[arg-type]
-            f.flush()
-            os.fsync(f.fileno())
-            size = f.tell()
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    with contextlib.suppress(OSError):  # not every file system lets a directory be synced
-        fd = os.open(target.parent, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-    return size
+    return write_atomically(
+        path, lambda f: np.savez(f, header=blob, **arrays))  # type: ignore[arg-type]
 
 
 # ------------------------------------------------------------------------ reading
