@@ -31,7 +31,8 @@ from ._common import UsageError
 from .grid import Stamps, grid, on_grid
 
 __all__ = ["TIME_COLUMNS", "Stamps", "Table", "add_reading_options", "column", "grid",
-           "numbers", "on_grid", "read_table", "time_choice", "times", "write_export"]
+           "numbers", "on_grid", "read_signals", "read_table", "time_choice", "times",
+           "write_export"]
 
 DELIMITERS = (",", ";", "\t")
 TIME_COLUMNS = ("t", "time", "timestamp", "datetime", "date time", "date")
@@ -204,6 +205,42 @@ def time_choice(table: Table, time: str | None, ts: float | None) -> int | None:
         raise UsageError(f"{table.path}: no time column 't' (columns: "
                          f"{', '.join(table.header)}); give --time COL or --ts S")
     return t_col
+
+
+@dataclasses.dataclass(frozen=True)
+class Signals:
+    """Columns read as numbers, on a regular grid where the file has a time column:
+    ``series`` in the order asked, ``ts`` the sample time, ``stamps`` the time column read
+    (None: rows every ``--ts``), ``t_col`` its index, ``notes`` how the file was read."""
+
+    series: list[np.ndarray]
+    ts: float
+    stamps: Stamps | None
+    t_col: int | None
+    notes: list[str]
+
+
+def read_signals(table: Table, columns: Sequence[tuple[str, str]], time: str | None,
+                 ts: float | None) -> Signals:
+    """The ``(name, option)`` columns of ``table`` as numbers, the time column chosen by
+    :func:`time_choice`, at least two rows, put on the grid of the median sample time
+    (:func:`grid`) where the file has times."""
+    cols = [column(table, name, option) for name, option in columns]
+    t_col = time_choice(table, time, ts)
+    if len(table.rows) < 2:
+        raise UsageError(f"{table.path}: {len(table.rows)} samples, need at least 2")
+    notes = list(table.notes)
+    series = []
+    for col in cols:
+        x, note = numbers(table, col)
+        series.append(x)
+        notes += [note] if note else []
+    if t_col is None:
+        assert ts is not None
+        return Signals(series, float(ts), None, None, notes)
+    t = times(table, t_col)
+    ts_grid, series, grid_notes = grid(table.path, table.header[t_col], t, series)
+    return Signals(series, ts_grid, t, t_col, notes + grid_notes)
 
 
 def _cells(table: Table, col: int) -> list[str]:

@@ -75,30 +75,13 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
     raises :class:`~stiction.cli._common.UsageError` naming it, a bad option value
     :class:`~stiction.ParameterError`."""
     table = historian.read_table(path, decimal=o.decimal, tz=o.tz)
-    notes = list(table.notes)
-    op_col = historian.column(table, o.op, "--op")
-    pv_col = historian.column(table, o.pv, "--pv")
-    t_col = historian.time_choice(table, o.time, o.ts)
-    if len(table.rows) < 2:
-        raise UsageError(f"{path}: {len(table.rows)} samples, need at least 2")
-    op, op_note = historian.numbers(table, op_col)
-    pv, pv_note = historian.numbers(table, pv_col)
-    notes += [n for n in (op_note, pv_note) if n]
-    pos: np.ndarray | None = None
+    wanted = [(o.op, "--op"), (o.pv, "--pv")]
     if o.position is not None:
-        pos, pos_note = historian.numbers(table, historian.column(table, o.position,
-                                                                  "--position"))
-        notes += [pos_note] if pos_note else []
-    t = None if t_col is None else historian.times(table, t_col)
-    if t is not None and t_col is not None:
-        ts, series, grid = historian.grid(path, table.header[t_col], t,
-                                          (op, pv) if pos is None else (op, pv, pos))
-        op, pv = series[0], series[1]
-        pos = None if pos is None else series[2]
-        notes += grid
-    else:
-        assert o.ts is not None
-        ts = o.ts
+        wanted.append((o.position, "--position"))
+    got = historian.read_signals(table, wanted, o.time, o.ts)
+    op, pv = got.series[0], got.series[1]
+    pos = got.series[2] if o.position is not None else None
+    ts, t, t_col, notes = got.ts, got.stamps, got.t_col, got.notes
     secs = np.arange(len(table.rows)) * ts if t is None else t.seconds
     clock = FileTime(table, t_col, secs, ts)
     first, op, pv = clock.cut(o, op, pv)

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..valvetest import StepTestDetails, StepTestReport, step_test_details
 from . import historian
-from ._common import Subparsers, UsageError, pyplot
+from ._common import Subparsers, pyplot
 
 __all__ = ["add_valve_test"]
 
@@ -54,23 +54,10 @@ def add_valve_test(sub: Subparsers) -> None:
 
 def _read(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, float, list[str]]:
     table = historian.read_table(args.file)
-    notes = list(table.notes)
-    op_col = historian.column(table, args.op, "--op")
-    if args.position is not None:
-        y_col = historian.column(table, args.position, "--position")
-    else:
-        y_col = historian.column(table, args.pv or "pv", "--pv")
-    t_col = historian.time_choice(table, args.time, args.ts)
-    if len(table.rows) < 2:
-        raise UsageError(f"{args.file}: {len(table.rows)} samples, need at least 2")
-    op, op_note = historian.numbers(table, op_col)
-    y, y_note = historian.numbers(table, y_col)
-    notes += [n for n in (op_note, y_note) if n]
-    if t_col is None:
-        return op, y, float(args.ts), notes
-    t = historian.times(table, t_col)
-    ts, (op, y), grid = historian.grid(args.file, table.header[t_col], t, (op, y))
-    return op, y, ts, notes + grid
+    y = (args.position, "--position") if args.position is not None else (args.pv or "pv",
+                                                                         "--pv")
+    got = historian.read_signals(table, [(args.op, "--op"), y], args.time, args.ts)
+    return got.series[0], got.series[1], got.ts, got.notes
 
 
 def _cmd_valve_test(args: argparse.Namespace) -> int:
