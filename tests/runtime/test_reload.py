@@ -20,7 +20,7 @@ import yaml
 from memory_harness import Harness, mconfig, mloop, wiggle
 from prometheus_client import CollectorRegistry
 from pymodbus.client import AsyncModbusTcpClient
-from reliability_helpers import FAKE, lateness, until
+from reliability_helpers import FAKE, HeldWatch, lateness, until
 
 from gateway.config import load_config, parse_config
 from gateway.core.points import Quality
@@ -34,11 +34,18 @@ EXPECTED = [line.removeprefix("gateway.yaml: ")
             for line in (CASES / "bad-file" / "expected.err").read_text().splitlines()]
 
 
+# The poll interval of the reload tests: 0.1 s, so that the independent lateness measure
+# (tests/support/reliability_helpers.lateness: a tick more than half a period late reads as
+# a missed one) resolves the 30-50 ms a reload's own work takes on a shared 2-core box
+# (the rebuild of the runtime, the YAML read in a thread).
+PERIOD = 0.1
+
+
 def _configs() -> tuple[dict[str, Any], dict[str, Any]]:
     """First: A, B, C on plc, E on plc2. Second: B removed, C's window longer, D added;
     plc2 and E unchanged."""
-    devs = [memory_device("plc", wiggle(400, 8), poll_interval_s=0.05, repeat=True),
-            memory_device("plc2", wiggle(400, 2), poll_interval_s=0.05, repeat=True)]
+    devs = [memory_device("plc", wiggle(400, 8), poll_interval_s=PERIOD, repeat=True),
+            memory_device("plc2", wiggle(400, 2), poll_interval_s=PERIOD, repeat=True)]
     a, b, c = mloop("A", "plc", 0, 0), mloop("B", "plc", 2, 20), mloop("C", "plc", 4, 40)
     e = mloop("E", "plc2", 0, 80)
     first = mconfig(devs, [a, b, c, e], analysis_interval_s=0.5)
@@ -84,12 +91,19 @@ def _write(path: Path, data: dict[str, Any]) -> Path:
     return path
 
 
-def _verdict(reg: CollectorRegistry, name: str) -> float | None:
-    """1.0 when the loop's verdict is published (whichever it is: under load a round may
-    have turned warming_up into bad_data), None when the loop has no verdict series."""
-    values = [s.value for fam in reg.collect() if fam.name == "stiction_loop_verdict"
-              for s in fam.samples if s.labels.get("loop") == name]
-    return None if not values else max(values)
+def _verdicts(reg: CollectorRegistry, names: str) -> dict[str, float | None]:
+    """Per loop of ``names``, 1.0 when its verdict is published (whichever it is: under load
+    a round may have turned warming_up into bad_data), None when it has no verdict series.
+    One collection of the registry: called in a thread, as the /metrics server collects,
+    since a collection in the event loop would delay the polls the test times."""
+    values: dict[str, float | None] = dict.fromkeys(names)
+    for fam in reg.collect():
+        if fam.name == "stiction_loop_verdict":
+            for s in fam.samples:
+                name = s.labels.get("loop", "")
+                if name in values:
+                    values[name] = max(s.value, values[name] or 0.0)
+    return values
 
 
 def _thread() -> ThreadPoolExecutor:
@@ -111,9 +125,32 @@ def frozen_heap() -> Iterator[None]:
 @pytest.mark.timeout(60)
 def test_a_running_gateway_reloads_and_refuses_bad_files(
         tmp_path: Path, caplog: pytest.LogCaptureFixture, frozen_heap: None) -> None:
+    # The schedule is timed on a shared box: a run during which the machine held this
+    # process (HeldWatch: late with the CPU idle) is run again, at most twice; a late tick
+    # with the process busy is the gateway's own and fails at once.
     caplog.set_level(logging.INFO, logger="gateway")
+    why = ""
+    for attempt in range(3):
+        caplog.clear()
+        with HeldWatch() as watch:
+            out = _reload_run(tmp_path)
+        _check_reload(out, caplog)
+        late_ok, why = _schedule_kept(out)
+        if late_ok:
+            return
+        assert watch.held, f"{why}; the machine never held the process: the gateway's own delay"
+        print(f"\nattempt {attempt + 1}: {why}; {watch}: run again")
+    pytest.fail(f"the schedule was not kept in 3 runs, each held by the machine: {why}")
+
+
+def _reload_run(tmp_path: Path) -> dict[str, Any]:
     first, second = _configs()
     out: dict[str, Any] = {}
+
+    # written before the gateway starts: dumping the memory devices' rows takes the event
+    # loop some 50 ms, the test's own delay of the polls it times
+    second_file = _write(tmp_path / "second.yaml", second)
+    (tmp_path / "bad.yaml").write_text(BAD)
 
     async def go() -> None:
         reg = CollectorRegistry()
@@ -121,23 +158,22 @@ def test_a_running_gateway_reloads_and_refuses_bad_files(
                            analyze=FAKE, serve_http=False, executor=_thread) as gw:
             await until(lambda: gw.scheduler.rounds >= 2)
             out["seq_before"] = {n: gw.store.results[i].seq for n, i in gw.store.index.items()}
-            out["metrics_before"] = {n: _verdict(reg, n) for n in "ABCDE"}
+            out["metrics_before"] = await asyncio.to_thread(_verdicts, reg, "ABCDE")
             sources = [p.source for p in gw.pollers]
             poller0 = gw.pollers[0]
-            assert await gw.reload(_write(tmp_path / "second.yaml", second))
+            assert await gw.reload(second_file)
             out["same_source"] = [p.source is x for p, x in zip(gw.pollers, sources,
                                                                 strict=True)]
             out["seq_after"] = {n: (r.seq if r else None) for n, r in
                                 zip(gw.store.loops, gw.store.results, strict=True)}
-            out["metrics_after"] = {n: _verdict(reg, n) for n in "ABCDE"}
+            out["metrics_after"] = await asyncio.to_thread(_verdicts, reg, "ABCDE")
             out["registers"] = gw.result_server.images[1][:80].tolist()
             a_now = gw.store.results[gw.store.index["A"]]
             out["code_A"] = VERDICT_CODES[a_now.assessment.verdict] if a_now else None
             polls = gw.pollers[0].polls
-            (tmp_path / "bad.yaml").write_text(BAD)
             out["bad_reload"] = await gw.reload(tmp_path / "bad.yaml")
             out["config_after_bad"] = gw.config.source
-            await asyncio.sleep(0.5)
+            await asyncio.sleep(10 * PERIOD)
             out["polls_after_bad"] = gw.pollers[0].polls - polls
             out["due"] = (poller0.next_due, gw.pollers[0].next_due)
             out["starts"] = poller0.tick_starts + gw.pollers[0].tick_starts
@@ -145,6 +181,11 @@ def test_a_running_gateway_reloads_and_refuses_bad_files(
             out["reconnects"] = gw.pollers[1].reconnects
 
     asyncio.run(asyncio.wait_for(go(), 50))
+    return out
+
+
+def _check_reload(out: dict[str, Any], caplog: pytest.LogCaptureFixture) -> None:
+    """What a reload must do whatever the machine's load: carry, drop, refuse, go on."""
     # A's result carried over (not reset; a round may have ended while the reload ran)
     assert out["seq_after"]["A"] is not None
     assert out["seq_after"]["A"] >= out["seq_before"]["A"] >= 2
@@ -160,18 +201,6 @@ def test_a_running_gateway_reloads_and_refuses_bad_files(
     # plc's points changed: a new source (connection); plc2 kept its connection
     assert out["same_source"] == [False, True]
     assert out["reconnects"] == 0
-    # the schedule went on: the new poller's ticks are due on the old one's grid, none was
-    # missed, none started late
-    handed_over, later = out["due"]
-    ticks = (later - handed_over) / 0.05
-    assert ticks > 5 and abs(ticks - round(ticks)) < 1e-6
-    # polling went on through both reloads (with a fake clock, the window keeps every tick
-    # across the rebuild: test_build_runtime_... above); here, on a shared box, a 50 ms
-    # tick may be starved by other processes (7 of about 15 once in CI): most must run
-    assert out["missed"] <= ticks / 2
-    late, skipped = lateness(out["starts"], 0.05)
-    assert skipped.sum() == out["missed"]  # a tick more than 25 ms late would be one more
-    assert float(late[skipped == 0].max()) < 0.025  # the others: within half a period
     # the bad file: refused with every problem, the running config stays, polls go on
     assert out["bad_reload"] is False
     assert out["config_after_bad"].endswith("second.yaml")
@@ -182,6 +211,25 @@ def test_a_running_gateway_reloads_and_refuses_bad_files(
         assert line in refused[0]
     assert any("reloaded" in r.getMessage() and "1 added, 1 removed" in r.getMessage()
                for r in caplog.records)
+    # the schedule went on: the new poller's ticks are due on the old one's grid
+    handed_over, later = out["due"]
+    ticks = (later - handed_over) / PERIOD
+    assert ticks > 5 and abs(ticks - round(ticks)) < 1e-6
+
+
+def _schedule_kept(out: dict[str, Any]) -> tuple[bool, str]:
+    """Polling went on through both reloads: most ticks ran, every tick the poller did not
+    count as missed started within half a period of its slot (with a fake clock, the window
+    keeps every tick across the rebuild: test_build_runtime_... above)."""
+    handed_over, later = out["due"]
+    ticks = (later - handed_over) / PERIOD
+    late, skipped = lateness(out["starts"], PERIOD)
+    worst = float(late[skipped == 0].max())
+    why = (f"{out['missed']} ticks missed of {ticks:.0f}, {int(skipped.sum())} seen skipped "
+           f"(a tick more than half a period late is one more), latest start {worst * 1e3:.0f} ms")
+    kept = (out["missed"] <= ticks / 2 and int(skipped.sum()) == out["missed"]
+            and worst < PERIOD / 2)
+    return kept, why
 
 
 @pytest.mark.timeout(60)

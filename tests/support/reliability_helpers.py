@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 import urllib.request
 from collections.abc import Callable
@@ -250,3 +251,42 @@ def wait_log(log: Path, text: str, limit_s: float = 90.0) -> str:
             return content
         time.sleep(0.05)
     raise TimeoutError(f"{text!r} not in {log}:\n{content}")
+
+
+# ---------------------------------------------------------------------- the box itself
+
+class HeldWatch:
+    """Whether the machine ran this process: while the watch is on, a thread wakes every
+    2 ms and notes each wake more than ``limit_s`` late during which the whole process used
+    under half the wall time in CPU (``time.process_time``, every thread): the operating
+    system held the process (other processes had the cores). A late wake with the process
+    busy in CPU is the process's own doing (an event loop blocked by its own work) and is
+    not noted, so a timing test may retry a run the box held, never one the code delayed.
+
+    ``held`` lists ``(monotonic start, seconds)`` of each episode."""
+
+    def __init__(self, limit_s: float = 0.015) -> None:
+        self.limit_s = limit_s
+        self.held: list[tuple[float, float]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name="held-watch", daemon=True)
+
+    def _watch(self) -> None:
+        wall, cpu = time.monotonic(), time.process_time()
+        while not self._stop.wait(0.002):
+            w, c = time.monotonic(), time.process_time()
+            if w - wall > self.limit_s and c - cpu < 0.5 * (w - wall):
+                self.held.append((wall, w - wall))
+            wall, cpu = w, c
+
+    def __enter__(self) -> HeldWatch:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(5)
+
+    def __str__(self) -> str:
+        worst = max((s for _, s in self.held), default=0.0)
+        return f"process held by the machine {len(self.held)} times (longest {worst * 1e3:.0f} ms)"
