@@ -9,19 +9,23 @@ windows). An output plugin module (registered by one line in
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import dataclasses
+import logging
 import os
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import BinaryIO, Protocol
+from typing import BinaryIO, Protocol, TypeVar
 
 from ..config.model import Config
 from ..core.store import ResultStore
 from ..core.ticks import ProcessClock
 from ..core.windows import LoopGroup
 
-__all__ = ["Binding", "Sink", "Swap", "write_atomically"]
+__all__ = ["Binding", "PeriodicWrites", "Sink", "Swap", "in_thread", "write_atomically"]
+
+T = TypeVar("T")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,3 +91,73 @@ def write_atomically(path: str | os.PathLike[str], write: Callable[[BinaryIO], N
         finally:
             os.close(fd)
     return size
+
+
+async def in_thread(write: Callable[..., T], *args: object) -> T:
+    """``write(*args)`` in a thread, awaited; cancelled, the thread still finishes its file
+    before the cancellation goes on (so the next write, e.g. the last one at stop, never
+    shares its temporary file)."""
+    job = asyncio.ensure_future(asyncio.to_thread(write, *args))
+    try:
+        return await asyncio.shield(job)
+    except asyncio.CancelledError:
+        await asyncio.wait([job])
+        raise
+
+
+class PeriodicWrites:
+    """The write schedule of an output that keeps a file (the state file, the verdict
+    history): ``save()`` every ``interval()`` seconds (read each time: a reload may change
+    it) when ``changed()``; a failing write calls ``failed()`` and is logged once, and once
+    when writes work again (a full disk must not stop the gateway); :meth:`stop` ends the
+    schedule and writes once more (``save(**final)``), never raising."""
+
+    def __init__(self, what: str, path: Callable[[], object],
+                 save: Callable[..., Awaitable[int]], interval: Callable[[], float], *,
+                 log: logging.Logger, changed: Callable[[], bool] = lambda: True,
+                 failed: Callable[[], None] = lambda: None) -> None:
+        self.what, self.path, self.save, self.interval = what, path, save, interval
+        self.log, self.changed, self.failed = log, changed, failed
+        self._task: asyncio.Task[None] | None = None
+
+    @property
+    def running(self) -> bool:
+        return self._task is not None
+
+    def start(self) -> None:
+        self._task = asyncio.create_task(self._run(), name=f"persist {self.what}")
+
+    async def _run(self) -> None:
+        failing = False
+        while True:
+            interval = self.interval()
+            await asyncio.sleep(interval)
+            if not self.changed():
+                continue
+            try:
+                await self.save()
+            except Exception as exc:
+                self.failed()
+                if not failing:
+                    self.log.error("%s %s: write failed: %s (retrying every %g s)",
+                                   self.what, self.path(), exc, interval)
+                failing = True
+            else:
+                if failing:
+                    self.log.warning("%s %s: writing again", self.what, self.path())
+                failing = False
+
+    async def stop(self, **final: object) -> None:
+        """End the schedule and write the last time; nothing if it never started (nothing
+        was loaded: nothing to write over the old file)."""
+        if self._task is None:
+            return
+        self._task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await self._task
+        self._task = None
+        try:
+            await self.save(**final)
+        except Exception:
+            self.failed()
+            self.log.exception("%s: final write failed", self.what)

@@ -14,13 +14,12 @@ the wall clock was behind the file's last write at start
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import time
 from collections.abc import Callable
 from typing import Any
 
-from ..base import Binding
+from ..base import Binding, PeriodicWrites, in_thread
 from .format import read_state, snapshot, write_state
 from .restore import RestoreReport, restore_state
 
@@ -46,7 +45,10 @@ class StateFile:
         self.last_save_s = 0.0  # wall time the last write took
         self.report: RestoreReport | None = None
         self._lock = asyncio.Lock()
-        self._task: asyncio.Task[None] | None = None
+        self.writes = PeriodicWrites(
+            "state file", lambda: self.path, self.save,
+            lambda: self.binding.config.gateway.persist_interval_s, log=log,
+            failed=self._failed)
 
     @property
     def path(self) -> str:
@@ -66,7 +68,7 @@ class StateFile:
             if self.report.kind is not None:
                 self.metrics.state_set_aside.labels(reason=self.report.kind).inc()
             self.metrics.state_clock_back.set(self.report.clock_back_s)
-        self._task = asyncio.create_task(self._persist(), name="persist")
+        self.writes.start()
 
     async def save(self, *, final: bool = False) -> int:
         """Write the state file now (atomically); returns its size in bytes. ``final``: the
@@ -77,15 +79,7 @@ class StateFile:
             header, arrays = snapshot(b.config, b.groups, b.store, wall=wall,
                                       proc=b.clock.now(wall), clean=final)
             t0 = time.perf_counter()
-            write = asyncio.ensure_future(
-                asyncio.to_thread(write_state, self.path, header, arrays))
-            try:
-                size = await asyncio.shield(write)
-            except asyncio.CancelledError:
-                # the thread writes on: hold the lock until its file is in place, or the
-                # next write (the final one at stop) would share its temporary file
-                await asyncio.wait([write])
-                raise
+            size = await in_thread(write_state, self.path, header, arrays)
             self.last_save_s = time.perf_counter() - t0
             self.saves += 1
             if self.metrics is not None:
@@ -93,36 +87,8 @@ class StateFile:
             log.debug("state file %s: %d bytes in %.3f s", self.path, size, self.last_save_s)
             return size
 
-    async def _persist(self) -> None:
-        failing = False
-        while True:
-            interval = self.binding.config.gateway.persist_interval_s
-            await asyncio.sleep(interval)
-            try:
-                await self.save()
-            except Exception as exc:  # a full disk must not stop the gateway
-                self._failed()
-                if not failing:
-                    log.error("state file %s: write failed: %s (retrying every %g s)",
-                              self.path, exc, interval)
-                failing = True
-            else:
-                if failing:
-                    log.warning("state file %s: writing again", self.path)
-                failing = False
-
     async def stop(self) -> None:
-        if self._task is None:
-            return  # never started: nothing restored, nothing to write over the old file
-        self._task.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await self._task
-        self._task = None
-        try:
-            await self.save(final=True)
-        except Exception:
-            self._failed()
-            log.exception("state file: final write failed")
+        await self.writes.stop(final=True)
 
     def _failed(self) -> None:
         self.failures += 1

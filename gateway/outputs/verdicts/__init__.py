@@ -22,7 +22,7 @@ from typing import Any
 
 from ...config.findings import verdicts_path
 from ...core.findings import FindingsBook
-from ..base import Binding
+from ..base import Binding, PeriodicWrites, in_thread
 from .history import HistoryError, read_history, set_aside, write_history
 
 __all__ = ["VerdictFile", "create_sink", "read_history"]
@@ -46,7 +46,10 @@ class VerdictFile:
         self.saves = 0
         self.set_aside: Path | None = None
         self._lock = asyncio.Lock()
-        self._task: asyncio.Task[None] | None = None
+        self.writes = PeriodicWrites(
+            "verdict history", lambda: self.path, self.save,
+            lambda: self.binding.config.gateway.persist_interval_s, log=log,
+            changed=lambda: self.book.history.dirty)
 
     @property
     def path(self) -> Path:
@@ -62,7 +65,7 @@ class VerdictFile:
 
     async def start(self) -> None:
         self.load()
-        self._task = asyncio.create_task(self._persist(), name="persist verdicts")
+        self.writes.start()
 
     def load(self) -> None:
         p = self.path
@@ -90,45 +93,12 @@ class VerdictFile:
             history.prune(dt.datetime.fromtimestamp(self.wall()).date())
             data, history.dirty = history.to_data(), False
             try:
-                write = asyncio.ensure_future(
-                    asyncio.to_thread(write_history, self.path, data, self.wall()))
-                size = await asyncio.shield(write)
-            except asyncio.CancelledError:
-                await asyncio.wait([write])  # the thread writes on: let it finish
-                raise
+                size = await in_thread(write_history, self.path, data, self.wall())
             except BaseException:
                 history.dirty = True
                 raise
             self.saves += 1
             return size
 
-    async def _persist(self) -> None:
-        failing = False
-        while True:
-            interval = self.binding.config.gateway.persist_interval_s
-            await asyncio.sleep(interval)
-            if not self.book.history.dirty:
-                continue
-            try:
-                await self.save()
-            except Exception as exc:  # a full disk must not stop the gateway
-                if not failing:
-                    log.error("verdict history %s: write failed: %s (retrying every %g s)",
-                              self.path, exc, interval)
-                failing = True
-            else:
-                if failing:
-                    log.warning("verdict history %s: writing again", self.path)
-                failing = False
-
     async def stop(self) -> None:
-        if self._task is None:
-            return  # never started: nothing loaded, nothing to write over the old file
-        self._task.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await self._task
-        self._task = None
-        try:
-            await self.save()
-        except Exception:
-            log.exception("verdict history: final write failed")
+        await self.writes.stop()
