@@ -16,15 +16,13 @@ wrong gain. We require instead that our fs is within 0.5 % of that unbiased valu
 from __future__ import annotations
 
 import functools
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
 
 from stiction import Verdict
 from stiction.paper.reproduce import ReproRow, qualifying_errors, reproduce
-from stiction.paper.tables import PAPER_ROWS, PaperRow
+from stiction.paper.tables import PAPER_ROWS
 
 
 def _unbiased_fs(row: ReproRow) -> float:
@@ -37,36 +35,9 @@ def _exempt(row: ReproRow) -> bool:
     return abs(_unbiased_fs(row) / row.paper.fs_true - 1.0) >= 0.05
 
 
-def _jobs() -> list[tuple[float, int, PaperRow]]:
-    """``(noise, seed, row)`` of every row this module checks."""
-    every = [(noise, 1, p) for noise in (0.0, 0.05) for p in PAPER_ROWS]
-    every += [(noise, seed, p) for noise, seed in SLOW_RUNS for p in PAPER_ROWS
-              if p.case in {f"tau={t:.0f}" for t in SLOW_TAUS}]
-    every += [(noise, seed, p) for noise, seed in NEVER_WRONG_RUNS for p in PAPER_ROWS
-              if p.case in {f"tau={t:.0f}" for t in NEVER_WRONG_TAUS}]
-    return list(dict.fromkeys(every))
-
-
 @functools.cache
-def _reproduced() -> dict[tuple[float, int, PaperRow], ReproRow]:
-    """Every row of :func:`_jobs`, simulated and analysed once, in two processes: the rows
-    are independent, and one process left the second core idle for three minutes of the
-    suite. The rows that share a simulation (scenario, parameters, noise and seed) go to
-    one process, so each is simulated once, as ``reproduce`` does for its rows."""
-    groups: dict[tuple[object, ...], list[PaperRow]] = {}
-    for noise, seed, p in _jobs():
-        groups.setdefault((noise, seed, p.scenario, p.overrides), []).append(p)
-    context = multiprocessing.get_context("spawn")  # no fork of a process with threads
-    with ProcessPoolExecutor(2, mp_context=context) as pool:
-        futures = {key: pool.submit(reproduce, noise=key[0], seed=key[1], rows=rows)
-                   for key, rows in sorted(groups.items(), key=lambda kv: -len(kv[1]))}
-        return {(key[0], key[1], r.paper): r  # type: ignore[index]
-                for key, f in futures.items() for r in f.result()}
-
-
 def _reproduce(noise: float) -> list[ReproRow]:
-    got = _reproduced()
-    return [got[(noise, 1, p)] for p in PAPER_ROWS]
+    return reproduce(noise=noise, seed=1)
 
 
 @pytest.fixture(scope="module", params=[0.0, 0.05], ids=["noise-free", "noise-0.05"])
@@ -150,19 +121,17 @@ def test_stiction_detected_where_the_paper_was_clear(rows: list[ReproRow]) -> No
             assert r.assessment.verdict == Verdict.STICTION, (r.paper.case, r.assessment)
 
 
-NEVER_WRONG_TAUS = (450.0, 480.0)
+@pytest.mark.parametrize("tau", [450.0, 480.0])
 # noise-free (the seed changes nothing) and 0.05/1 are `rows` above, whose
 # test_under_5_percent_where_the_paper_was checks these rows the same way
-NEVER_WRONG_RUNS = ((0.05, 2), (0.1, 1), (0.1, 2), (0.1, 3), (0.2, 3))
-
-
-@pytest.mark.parametrize("tau", NEVER_WRONG_TAUS)
-@pytest.mark.parametrize(("noise", "seed"), NEVER_WRONG_RUNS)
+@pytest.mark.parametrize(("noise", "seed"), [(0.05, 2), (0.1, 1), (0.1, 2), (0.1, 3),
+                                             (0.2, 3)])
 def test_table6_slow_loops_never_confidently_wrong(tau: float, noise: float, seed: int) -> None:
     """Seeds where the noisy SI reaches the stiction band (>= 0.6) are among these: 0.05/1,
     0.05/2, 0.1/1, 0.1/2, 0.2/3 (SI 0.62-0.73 on at least one tau)."""
-    (r,) = [r for (n, s, p), r in _reproduced().items()
-            if (n, s) == (noise, seed) and p.case == f"tau={tau:.0f}"]
+    rows = reproduce(noise=noise, seed=seed,
+                     rows=[p for p in PAPER_ROWS if p.case == f"tau={tau:.0f}"])
+    (r,) = rows
     a = r.assessment
     assert not _confidently_wrong(r), a
     if a.verdict == Verdict.STICTION and a.fd is None:
@@ -181,9 +150,11 @@ UNDETERMINED_TODAY = {(0.0, 0, 330.0): 0.816, (0.0, 0, 360.0): 0.817, (0.0, 0, 3
 ``xfail(strict=True)`` fails the day they are called, so that the mark goes with them."""
 
 
+@functools.cache
 def _slow_rows(noise: float, seed: int) -> dict[float, ReproRow]:
-    return {_tau(r): r for (n, s, p), r in _reproduced().items()
-            if (n, s) == (noise, seed) and p.case in ("tau=330", "tau=360", "tau=390")}
+    rows = reproduce(noise=noise, seed=seed,
+                     rows=[p for p in PAPER_ROWS if p.case in ("tau=330", "tau=360", "tau=390")])
+    return {_tau(r): r for r in rows}
 
 
 @pytest.mark.parametrize(("noise", "seed"), SLOW_RUNS)
