@@ -41,6 +41,7 @@ from deploy_support import (
     rule_queries,
     run,
     shortened_rules,
+    unit_stop_timeout_s,
 )
 
 from bench._net import free_port
@@ -82,10 +83,13 @@ def _start(cmd: list[str], log: Path) -> subprocess.Popen[bytes]:
 
 
 def _stop(proc: subprocess.Popen[bytes]) -> None:
+    """SIGTERM, and as long as systemd would wait (the unit's TimeoutStopSec: on a loaded
+    box the analysis workers' last batch and the final writes took 10 s once) before
+    SIGKILL."""
     if proc.poll() is None:
         proc.terminate()
         try:
-            proc.wait(timeout=10)
+            proc.wait(timeout=unit_stop_timeout_s())
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()

@@ -32,6 +32,15 @@ RULE_FILES = sorted((PROM_DIR / "rules").glob("*.yml"))
 UNIT = DEPLOY / "systemd" / "stiction-gateway.service"
 
 
+def unit_stop_timeout_s() -> float:
+    """``TimeoutStopSec`` of deploy/systemd/stiction-gateway.service: how long systemd lets
+    the gateway stop before SIGKILL, so how long a test waits for a clean exit."""
+    unit = (REPO / "deploy" / "systemd" / "stiction-gateway.service").read_text()
+    m = re.search(r"^TimeoutStopSec=(\d+)s?$", unit, re.M)
+    assert m, "the unit has no TimeoutStopSec in seconds"
+    return float(m.group(1))
+
+
 def in_ci() -> bool:
     return os.environ.get("CI", "").lower() == "true"
 
