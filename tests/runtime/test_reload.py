@@ -166,10 +166,10 @@ def _reload_run(tmp_path: Path) -> dict[str, Any]:
                                                                 strict=True)]
             out["seq_after"] = {n: (r.seq if r else None) for n, r in
                                 zip(gw.store.loops, gw.store.results, strict=True)}
-            out["metrics_after"] = await asyncio.to_thread(_verdicts, reg, "ABCDE")
-            out["registers"] = gw.result_server.images[1][:80].tolist()
-            a_now = gw.store.results[gw.store.index["A"]]
+            out["registers"] = gw.result_server.images[1][:80].tolist()  # no await since
+            a_now = gw.store.results[gw.store.index["A"]]  # seq_after: the same round
             out["code_A"] = VERDICT_CODES[a_now.assessment.verdict] if a_now else None
+            out["metrics_after"] = await asyncio.to_thread(_verdicts, reg, "ABCDE")
             polls = gw.pollers[0].polls
             out["bad_reload"] = await gw.reload(tmp_path / "bad.yaml")
             out["config_after_bad"] = gw.config.source
