@@ -4,14 +4,15 @@ A historian's CSV export is read as it is: the delimiter sniffed from the header
 first rows (``,``, ``;`` or tab; an Excel ``sep=;`` first line is obeyed), decimal commas
 and thousands separators (``1,118.5`` or ``1.118,5``: the decimal mark decided per column
 from the whole column's evidence, :mod:`.decimals`; a column that reads two ways is refused,
-naming both readings), a UTF-8 or UTF-16 byte-order mark, Windows-1252 when the file is
-not UTF-8, column names matched without regard to case, rows of units or descriptions
-under the header and a header repeated where two exports were appended (skipped, said so),
-time stamps as seconds or as ISO 8601 and other common date-times with or without a zone
-(:mod:`.stamps`), and text cells in OP or PV ("I/O Timeout", "Shutdown", "Bad") as gaps,
-counted. Rows go on a grid of the median sample time (:mod:`.grid`); time stamps that
-wander off it are refused. Every problem is a :class:`~stiction.cli._common.UsageError`
-that names the file, the line or column, and what to do.
+naming both readings), a UTF-8 or UTF-16 byte-order mark, Windows-1252 when the file is not
+UTF-8, column names matched without regard to case, rows of units or descriptions under the
+header and a header repeated where two exports were appended (skipped, said so), time stamps
+as seconds (Unix milliseconds to nanoseconds read as such, said so) or as ISO 8601 and other
+common date-times with or without a zone (:mod:`.stamps`), rows written newest first turned
+round (said so), and text cells in OP or PV ("I/O Timeout", "Shutdown", "Bad") as gaps,
+counted. Rows go on a grid of the median sample time (:mod:`.grid`); time stamps that wander
+off it are refused. Every problem is a :class:`~stiction.cli._common.UsageError` that names
+the file, the line or column, and what to do.
 """
 
 from __future__ import annotations
@@ -31,8 +32,8 @@ from ._common import UsageError
 from .grid import Stamps, grid, on_grid
 
 __all__ = ["TIME_COLUMNS", "Stamps", "Table", "add_reading_options", "column", "grid",
-           "numbers", "on_grid", "read_signals", "read_table", "time_choice", "times",
-           "write_export"]
+           "numbers", "oldest_first", "on_grid", "read_signals", "read_table", "time_choice",
+           "times", "write_export"]
 
 DELIMITERS = (",", ";", "\t")
 TIME_COLUMNS = ("t", "time", "timestamp", "datetime", "date time", "date")
@@ -218,6 +219,8 @@ class Signals:
     stamps: Stamps | None
     t_col: int | None
     notes: list[str]
+    table: Table
+    """The table read, its rows oldest first (:func:`oldest_first`)."""
 
 
 def read_signals(table: Table, columns: Sequence[tuple[str, str]], time: str | None,
@@ -229,6 +232,8 @@ def read_signals(table: Table, columns: Sequence[tuple[str, str]], time: str | N
     t_col = time_choice(table, time, ts)
     if len(table.rows) < 2:
         raise UsageError(f"{table.path}: {len(table.rows)} samples, need at least 2")
+    if t_col is not None:
+        table = oldest_first(table, t_col)
     notes = list(table.notes)
     series = []
     for col in cols:
@@ -237,10 +242,25 @@ def read_signals(table: Table, columns: Sequence[tuple[str, str]], time: str | N
         notes += [note] if note else []
     if t_col is None:
         assert ts is not None
-        return Signals(series, float(ts), None, None, notes)
+        return Signals(series, float(ts), None, None, notes, table)
     t = times(table, t_col)
     ts_grid, series, grid_notes = grid(table.path, table.header[t_col], t, series)
-    return Signals(series, ts_grid, t, t_col, notes + grid_notes)
+    return Signals(series, ts_grid, t, t_col, notes + grid_notes, table)
+
+
+def oldest_first(table: Table, t_col: int) -> Table:
+    """``table`` with its rows oldest first: an export written newest first (time going
+    back on every row, never forward) is turned round, and a note says so; any other
+    order is left for :func:`grid` to judge (time going back somewhere is refused)."""
+    t = times(table, t_col).seconds
+    steps = np.diff(t)
+    if t.size < 2 or not (np.all(steps <= 0) and np.any(steps < 0)):
+        return table
+    name = table.header[t_col]
+    note = (f"rows newest first (column {name!r} from {table.rows[0][t_col].strip()!r} back "
+            f"to {table.rows[-1][t_col].strip()!r}): read oldest first")
+    return dataclasses.replace(table, rows=table.rows[::-1], lines=table.lines[::-1],
+                               notes=(*table.notes, note))
 
 
 def _cells(table: Table, col: int) -> list[str]:
@@ -337,8 +357,7 @@ def times(table: Table, col: int) -> Stamps:
     if cells and decimals.is_number(cells[0]):  # seconds
         got, how = read_numbers(table, col, cells)
         if not got.text:
-            return Stamps(got.values, cells, table.lines, None, (how,) if how else (),
-                          table.appended)
+            return _numeric_times(table, col, cells, got.values, how)
     try:
         dates = stamps.read_dates(cells, table.tz)
     except stamps.ZoneError as exc:
@@ -356,6 +375,32 @@ def times(table: Table, col: int) -> Stamps:
                          "interval")
     return Stamps(dates.seconds, cells, table.lines, dates.zone,
                   (dates.note,) if dates.note else (), table.appended)
+
+
+def _numeric_times(table: Table, col: int, cells: Sequence[str], values: np.ndarray,
+                   how: str | None) -> Stamps:
+    """A time column of numbers: seconds as they are, Unix milliseconds, microseconds or
+    nanoseconds read as seconds and said so (:func:`stamps.epoch_unit`); spreadsheet serial
+    dates refused, naming them (:func:`stamps.serial_days`), since read as seconds their
+    rows would be 1/86400 s apart."""
+    notes = [how] if how else []
+    name = table.header[col]
+    unit = stamps.epoch_unit(values)
+    if unit is not None:
+        word, per_second = unit
+        values = values / per_second
+        first = dt.datetime.fromtimestamp(float(values[0]), dt.UTC)
+        notes.append(f"column {name!r} holds Unix time in {word} ({cells[0]!r} is "
+                     f"{first:%Y-%m-%d %H:%M:%S} UTC): read as seconds")
+    elif stamps.serial_days(values):
+        raise UsageError(
+            f"{table.path}: column {name!r} holds numbers like {cells[0]!r} (line "
+            f"{table.lines[0]}) {float(np.median(np.diff(values))):.3g} apart: spreadsheet "
+            f"serial dates (days since 1899-12-30; {cells[0]!r} would be "
+            f"{stamps.serial_text(float(values[0]))})? Read as seconds, its rows would be a "
+            "fraction of a second apart. Format the column as date-times before saving the "
+            "file (e.g. 2024-03-01 06:00:00), or give --ts S for rows at a fixed interval")
+    return Stamps(values, cells, table.lines, None, tuple(notes), table.appended)
 
 
 EXPORT_START = dt.datetime(2024, 3, 1, 6, 0, 0, tzinfo=dt.UTC)

@@ -79,6 +79,7 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
     if o.position is not None:
         wanted.append((o.position, "--position"))
     got = historian.read_signals(table, wanted, o.time, o.ts)
+    table = got.table  # oldest first
     op, pv = got.series[0], got.series[1]
     pos = got.series[2] if o.position is not None else None
     ts, t, t_col, notes = got.ts, got.stamps, got.t_col, got.notes

@@ -82,8 +82,10 @@ def loop_columns(header: list[str]) -> tuple[dict[str, tuple[int, int]], dict[st
 def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, np.ndarray]],
                                              dict[str, np.ndarray], list[str]]:
     table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
-    notes = list(table.notes)
     t_col = historian.time_choice(table, args.time, args.ts)
+    if t_col is not None and len(table.rows) >= 2:
+        table = historian.oldest_first(table, t_col)
+    notes = list(table.notes)
     header = [h for i, h in enumerate(table.header) if i != t_col]
     cols = [i for i in range(len(table.header)) if i != t_col]
     loops, others = loop_columns(header)

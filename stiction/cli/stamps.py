@@ -22,8 +22,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["AMBIGUOUS", "DATE_FORMATS", "EXAMPLES", "ZONES", "Dates", "ZoneError", "is_date",
-           "parse_tz", "read_dates"]
+__all__ = ["AMBIGUOUS", "DATE_FORMATS", "EPOCH_UNITS", "EXAMPLES", "ZONES", "Dates",
+           "ZoneError", "epoch_unit", "is_date", "parse_tz", "read_dates", "serial_days",
+           "serial_text"]
 
 DATE_FORMATS = (
     "%d.%m.%Y %H:%M:%S", "%d.%m.%Y %H:%M",            # 01.03.2024 06:00:00
@@ -270,3 +271,49 @@ def is_date(cell: str) -> bool:
     m = _SUFFIX.search(cell)
     body = cell if m is None else cell[:m.start()]
     return any(_parse(body, f) is not None for f in ("iso", *DATE_FORMATS))
+
+
+EPOCH_UNITS = (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9))
+"""Units of Unix time other than seconds that exports write (Ignition's ``t_stamp`` and
+most web historians: milliseconds; InfluxDB: nanoseconds), with their count per second."""
+_YEARS = (946_684_800.0, 4_102_444_800.0)  # 2000-01-01 and 2100-01-01 in Unix seconds
+
+
+def epoch_unit(values: np.ndarray) -> tuple[str, float] | None:
+    """``(unit, per_second)`` when every number of a time column is a Unix time of this
+    century in one of :data:`EPOCH_UNITS` (the ranges do not overlap: seconds of this
+    century are 9.5e8 to 4.1e9, milliseconds 9.5e11 to 4.1e12, ...); None otherwise, the
+    numbers then being seconds as they are. Judged from the magnitude alone, so one value
+    (a ``--from`` time) reads as its column does."""
+    x = values[np.isfinite(values)]
+    if x.size == 0:
+        return None
+    lo, hi = float(x.min()), float(x.max())
+    for unit, per_second in EPOCH_UNITS:
+        if _YEARS[0] * per_second <= lo and hi <= _YEARS[1] * per_second:
+            return unit, per_second
+    return None
+
+
+_SERIAL_EPOCH = 25_569.0  # 1970-01-01 as a spreadsheet serial date (days since 1899-12-30)
+
+
+def serial_days(values: np.ndarray) -> bool:
+    """Whether a time column's numbers look like spreadsheet serial dates (days since
+    1899-12-30 with the time of day as a fraction, as Excel writes a date-time cell saved
+    as a number): every one within 1970-2100 (25,569 to 73,051) and the rows at most an
+    hour apart (a step of 1/24 or less), which as seconds would be a recording sampled
+    faster than 24 times a second that starts seven hours or more into its clock."""
+    x = values[np.isfinite(values)]
+    if x.size < 2:
+        return False
+    steps = np.diff(x)
+    steps = steps[steps > 0]
+    return bool(x.min() >= _SERIAL_EPOCH and x.max() <= 73_051.0 and steps.size
+                and float(np.median(steps)) <= 1.0 / 24.0)
+
+
+def serial_text(value: float) -> str:
+    """A spreadsheet serial date as the date-time it stands for (UTC), for messages."""
+    when = _EPOCH + dt.timedelta(days=value - _SERIAL_EPOCH)
+    return when.strftime("%Y-%m-%d %H:%M:%S")

@@ -388,3 +388,75 @@ def test_the_plot_is_on_the_exports_own_time_axis(
     text = ax_pattern.texts[0].get_text()
     assert text.startswith("test votes: + stiction, - not stiction, . cannot tell\n")
     capsys.readouterr()
+
+
+@pytest.mark.parametrize("unit", [("milliseconds", 1e3), ("microseconds", 1e6),
+                                  ("nanoseconds", 1e9)], ids=["ms", "us", "ns"])
+def test_unix_time_in_milliseconds_and_finer_is_read_as_seconds_and_said(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict, unit: tuple[str, float]) -> None:
+    """A time column in Unix milliseconds (Ignition's t_stamp, most web historians) was
+    read as seconds without a word: the period 1000 times too long (235,679 s for 235.7 s),
+    and every time-based rule (enough to judge, --from/--to) off by as much."""
+    word, per_second = unit
+    start = int(UTC0.timestamp())
+    t, op, pv = loop
+    rows = [[str(round((start + float(a)) * per_second)), f"{b:.4f}", f"{c:.4f}"]
+            for a, b, c in zip(t, op, pv, strict=True)]
+    path = _write(tmp_path / "epoch.csv", ("t_stamp", "FIC101.OP", "FIC101.PV"), rows, ",")
+    got = _run(capsys, path, "--time", "t_stamp", "--op", "FIC101.OP", "--pv", "FIC101.PV")
+    _same(got, clean)
+    said = [w for w in got["warnings"] if "Unix time" in w]
+    assert said == [f"column 't_stamp' holds Unix time in {word} ({rows[0][0]!r} is "
+                    f"{UTC0:%Y-%m-%d %H:%M:%S} UTC): read as seconds"]
+    # a --from time is read as its column is: the stretch of the seconds export from the
+    # same row
+    cut = _run(capsys, path, "--time", "t_stamp", "--op", "FIC101.OP", "--pv", "FIC101.PV",
+               "--from", rows[300][0])
+    seconds = [(f"{a:g}", b, c) for a, (_, b, c) in zip(t, rows, strict=True)]
+    in_seconds = _run(capsys, _write(tmp_path / "s.csv", ("t", "op", "pv"), seconds, ","),
+                      "--from", seconds[300][0])
+    assert cut["confidence"] != got["confidence"]  # a stretch, not the whole
+    assert {k: v for k, v in cut.items() if k != "warnings"} == \
+        {k: v for k, v in in_seconds.items() if k != "warnings"}
+
+
+def test_spreadsheet_serial_dates_are_refused_naming_them(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        loop: tuple[np.ndarray, ...]) -> None:
+    """Excel's date-times saved as numbers (days since 1899-12-30) were read as seconds and
+    refused as 'time stamps irregular ... the historian exported recorded (compressed)
+    values': the wrong cause and the wrong remedy."""
+    t, op, pv = loop
+    days = (UTC0 - dt.datetime(1899, 12, 30, tzinfo=dt.UTC)).total_seconds() / 86400
+    rows = [[f"{days + float(a) / 86400:.8f}", f"{b:.4f}", f"{c:.4f}"]
+            for a, b, c in zip(t, op, pv, strict=True)]
+    path = _write(tmp_path / "excel.csv", HEADER, rows, ",")
+    err = _error(capsys, path, "--op", "FIC101.OP", "--pv", "FIC101.PV")
+    assert f"column 'Time' holds numbers like {rows[0][0]!r} (line 2)" in err
+    assert f"spreadsheet serial dates (days since 1899-12-30; {rows[0][0]!r} would be " \
+        f"{UTC0:%Y-%m-%d %H:%M:%S})" in err
+    assert "compressed" not in err
+
+
+def test_rows_newest_first_are_read_oldest_first_and_said(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict) -> None:
+    """An export written newest first was refused: 'time goes backwards ... sort the rows
+    by time'. Time going back on every row is that order, not a fault."""
+    _, rows = _export(tmp_path / "x.txt", loop, _iso)
+    path = _write(tmp_path / "newest-first.txt", HEADER, rows[::-1], "\t")
+    got = _quirk(capsys, path)
+    _same(got, clean)
+    assert f"rows newest first (column 'Time' from {rows[-1][0]!r} back to {rows[0][0]!r}): " \
+        "read oldest first" in got["warnings"]
+    # a stretch of it, by the file's own time, is the same stretch as in time order
+    stretch = ("--from", rows[200][0], "--to", rows[900][0])
+    in_order = _quirk(capsys, _write(tmp_path / "in-order.txt", HEADER, rows, "\t"), *stretch)
+    assert {k: v for k, v in _quirk(capsys, path, *stretch).items() if k != "warnings"} == \
+        {k: v for k, v in in_order.items() if k != "warnings"}
+    # one row out of order is still refused, naming it
+    swapped = [*rows[:10], rows[11], rows[10], *rows[12:]]
+    err = _error(capsys, _write(tmp_path / "swapped.txt", HEADER, swapped, "\t"),
+                 "--op", "FIC101.OP", "--pv", "FIC101.PV")
+    assert "time goes backwards" in err and "sort the rows by time" in err
