@@ -31,9 +31,9 @@ from . import decimals, stamps
 from ._common import UsageError
 from .grid import Stamps, grid, on_grid
 
-__all__ = ["TIME_COLUMNS", "Stamps", "Table", "add_reading_options", "column", "grid",
-           "numbers", "oldest_first", "on_grid", "read_signals", "read_table", "time_choice",
-           "times", "write_export"]
+__all__ = ["DATE_COLUMNS", "TIME_COLUMNS", "Stamps", "Table", "add_reading_options", "column",
+           "grid", "numbers", "oldest_first", "on_grid", "read_signals", "read_table",
+           "time_choice", "times", "write_export"]
 
 DELIMITERS = (",", ";", "\t")
 TIME_COLUMNS = ("t", "time", "timestamp", "datetime", "date time", "date")
@@ -358,6 +358,10 @@ def times(table: Table, col: int) -> Stamps:
         got, how = read_numbers(table, col, cells)
         if not got.text:
             return _numeric_times(table, col, cells, got.values, how)
+    if cells and stamps.is_time_of_day(cells[0]):
+        of_day = _times_of_day(table, col, cells)
+        if of_day is not None:
+            return of_day
     try:
         dates = stamps.read_dates(cells, table.tz)
     except stamps.ZoneError as exc:
@@ -375,6 +379,41 @@ def times(table: Table, col: int) -> Stamps:
                          "interval")
     return Stamps(dates.seconds, cells, table.lines, dates.zone,
                   (dates.note,) if dates.note else (), table.appended)
+
+
+DATE_COLUMNS = ("date", "datum", "fecha", "data", "day")
+"""Names (any case) of a column of dates that a column of times of day goes with."""
+
+
+def _times_of_day(table: Table, col: int, cells: Sequence[str]) -> Stamps | None:
+    """A column of times of day (``06:00:00``): read together with the date column beside
+    it (:data:`DATE_COLUMNS`, as spreadsheets split a time stamp), else as seconds from the
+    first row's midnight, a day added each time the clock passes midnight; said so either
+    way. None when the cells are not all times of day."""
+    name = table.header[col]
+    d_col = next((j for j, h in enumerate(table.header)
+                  if j != col and h.strip().casefold() in DATE_COLUMNS), None)
+    if d_col is not None:
+        joined = [f"{row[d_col].strip()} {c}" if d_col < len(row) else c
+                  for row, c in zip(table.rows, cells, strict=True)]
+        try:
+            dates = stamps.read_dates(joined, table.tz)
+        except stamps.ZoneError as exc:
+            raise UsageError(f"{table.path}: line {table.lines[exc.row]}, columns "
+                             f"{table.header[d_col]!r} and {name!r}: {joined[exc.row]!r}: "
+                             f"{exc}") from None
+        if dates is not None:
+            note = (f"columns {table.header[d_col]!r} and {name!r} read together as the "
+                    "time stamp")
+            return Stamps(dates.seconds, joined, table.lines, dates.zone,
+                          tuple(n for n in (note, dates.note) if n), table.appended)
+    secs = stamps.times_of_day(cells)
+    if secs is None:
+        return None
+    note = (f"column {name!r} holds times of day without a date: read as seconds from the "
+            "first row's midnight, a day added each time the clock passes midnight (a "
+            f"column named {DATE_COLUMNS[0]!r} beside it would be read with it)")
+    return Stamps(secs, cells, table.lines, None, (note,), table.appended)
 
 
 def _numeric_times(table: Table, col: int, cells: Sequence[str], values: np.ndarray,

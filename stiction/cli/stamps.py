@@ -23,8 +23,8 @@ from collections.abc import Sequence
 import numpy as np
 
 __all__ = ["AMBIGUOUS", "DATE_FORMATS", "EPOCH_UNITS", "EXAMPLES", "ZONES", "Dates",
-           "ZoneError", "epoch_unit", "is_date", "parse_tz", "read_dates", "serial_days",
-           "serial_text"]
+           "ZoneError", "epoch_unit", "is_date", "is_time_of_day", "parse_tz", "read_dates",
+           "serial_days", "serial_text", "times_of_day"]
 
 DATE_FORMATS = (
     "%d.%m.%Y %H:%M:%S", "%d.%m.%Y %H:%M",            # 01.03.2024 06:00:00
@@ -317,3 +317,32 @@ def serial_text(value: float) -> str:
     """A spreadsheet serial date as the date-time it stands for (UTC), for messages."""
     when = _EPOCH + dt.timedelta(days=value - _SERIAL_EPOCH)
     return when.strftime("%Y-%m-%d %H:%M:%S")
+
+
+_TIME_OF_DAY = re.compile(r"^(\d{1,2}):(\d{2})(?::(\d{2}(?:\.\d+)?))?(?:\s*([AaPp][Mm]))?$")
+
+
+def is_time_of_day(cell: str) -> bool:
+    """Whether the cell is a time of day without a date (``06:00:00``, ``6:00 AM``)."""
+    return _TIME_OF_DAY.match(cell.strip()) is not None
+
+
+def times_of_day(cells: Sequence[str]) -> np.ndarray | None:
+    """Seconds from midnight of the first row's day of cells that are all times of day, a
+    day added each time the clock goes back more than 12 hours (it passed midnight); None
+    when a cell is not a time of day."""
+    out = np.empty(len(cells))
+    day = 0.0
+    for i, cell in enumerate(cells):
+        m = _TIME_OF_DAY.match(cell.strip())
+        if m is None:
+            return None
+        hours, minutes, secs = int(m[1]), int(m[2]), float(m[3] or 0.0)
+        if m[4]:
+            hours = hours % 12 + (12 if m[4].upper() == "PM" else 0)
+        t = day + 3600.0 * hours + 60.0 * minutes + secs
+        if i and t < out[i - 1] - 43_200.0:
+            day += 86_400.0
+            t += 86_400.0
+        out[i] = t
+    return out

@@ -460,3 +460,38 @@ def test_rows_newest_first_are_read_oldest_first_and_said(
     err = _error(capsys, _write(tmp_path / "swapped.txt", HEADER, swapped, "\t"),
                  "--op", "FIC101.OP", "--pv", "FIC101.PV")
     assert "time goes backwards" in err and "sort the rows by time" in err
+
+
+@pytest.mark.parametrize("form", [("%Y-%m-%d", "%H:%M:%S"), ("%d.%m.%Y", "%H:%M:%S"),
+                                  ("%m/%d/%Y", "%I:%M:%S %p")],
+                         ids=["iso", "german", "us-am-pm"])
+def test_date_and_time_in_two_columns_are_read_together(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict, form: tuple[str, str]) -> None:
+    """A spreadsheet export with the date and the time of day in two columns was refused:
+    "not a time: '06:00:00' ... or give --ts S". Across midnight, so the date matters."""
+    date, time = form
+    t, op, pv = loop
+    start = dt.datetime(2024, 3, 1, 23, 55)
+    rows = [[(start + dt.timedelta(seconds=float(a))).strftime(date),
+             (start + dt.timedelta(seconds=float(a))).strftime(time), f"{b:.4f}", f"{c:.4f}"]
+            for a, b, c in zip(t, op, pv, strict=True)]
+    path = _write(tmp_path / "split.csv", ("Date", "Time", "FIC101.OP", "FIC101.PV"), rows, ";")
+    got = _quirk(capsys, path)
+    _same(got, clean)
+    assert "columns 'Date' and 'Time' read together as the time stamp" in got["warnings"]
+
+
+def test_times_of_day_without_a_date_cross_midnight(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict) -> None:
+    """Times of day alone (a trend copied from an operator screen): a day added at
+    midnight, said so; they were refused as 'not a time'."""
+    t, op, pv = loop
+    start = dt.datetime(2024, 3, 1, 23, 55)
+    rows = [[(start + dt.timedelta(seconds=float(a))).strftime("%H:%M:%S"), f"{b:.4f}",
+             f"{c:.4f}"] for a, b, c in zip(t, op, pv, strict=True)]
+    got = _quirk(capsys, _write(tmp_path / "times.csv", HEADER, rows, ","))
+    _same(got, clean)
+    assert any(w.startswith("column 'Time' holds times of day without a date") and
+               "a day added each time the clock passes midnight" in w for w in got["warnings"])
