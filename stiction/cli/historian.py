@@ -81,8 +81,9 @@ def _tz(text: str) -> dt.tzinfo:
 
 def read_table(path: Path, *, decimal: str | None = None, tz: dt.tzinfo | None = None
                ) -> Table:
-    """The file's header and rows (empty lines skipped; rows of units or descriptions under
-    the header, and a repeated header with its own such rows, skipped and noted);
+    """The file's header and rows (empty lines skipped; lines before the header that hold
+    no delimiter, rows of units or descriptions under the header, and a repeated header
+    with its own such rows, skipped and noted);
     ``decimal`` the decimal mark (default: decided per column, :func:`numbers`), ``tz``
     the zone of stamps that name none or an ambiguous one (:func:`times`)."""
     text, notes = _text(path)
@@ -91,6 +92,16 @@ def read_table(path: Path, *, decimal: str | None = None, tz: dt.tzinfo | None =
     sep = None
     if lines and lines[0].lower().startswith("sep=") and len(lines[0]) in (5, 6):
         sep, first = lines[0][4:] or "\t", 1  # Excel's hint line
+    if sep is None:  # lines before the header that hold no delimiter: an export's preamble
+        lead = next((i for i, line in enumerate(lines)
+                     if any(d in line for d in DELIMITERS)), len(lines))
+        said = [line.strip() for line in lines[:lead] if line.strip()]
+        if said and lead < len(lines):
+            first = lead
+            shown = ", ".join(repr(x) for x in said[:3]) + (", ..." if len(said) > 3 else "")
+            where = "line 1" if lead == 1 else f"lines 1-{lead}"
+            notes.append(f"{where} before the header hold no column (an export's "
+                         f"preamble?): skipped ({shown})")
     body = lines[first:]
     if not any(line.strip() for line in body):
         raise UsageError(f"{path}: empty file (need a header row naming the columns)")

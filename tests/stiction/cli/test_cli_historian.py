@@ -495,3 +495,26 @@ def test_times_of_day_without_a_date_cross_midnight(
     _same(got, clean)
     assert any(w.startswith("column 'Time' holds times of day without a date") and
                "a day added each time the clock passes midnight" in w for w in got["warnings"])
+
+
+def test_a_preamble_before_the_header_is_skipped_and_said(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        clean: dict) -> None:
+    """Lines of metadata before the header (tag, server, export time) made the first of
+    them the header: "no column 'FIC101.OP' (columns: Tag: FIC101)"."""
+    path, _ = _export(tmp_path / "export.csv", loop, _iso, sep=";")
+    text = path.read_text(encoding="utf-8")
+    path.write_text("Tag: FIC101\r\nServer: PHD01\r\nExported: 2024-03-01 07:00\r\n\r\n" + text,
+                    encoding="utf-8")
+    got = _quirk(capsys, path)
+    _same(got, clean)
+    assert "lines 1-4 before the header hold no column (an export's preamble?): skipped " \
+        "('Tag: FIC101', 'Server: PHD01', 'Exported: 2024-03-01 07:00')" in got["warnings"]
+    # lines are still counted from the top of the file: data row k is line k + 3 under a
+    # one-line preamble and the header
+    rows = text.splitlines()
+    rows[11], rows[12] = rows[12], rows[11]  # data rows 10 and 11 swapped
+    path.write_text("Tag: FIC101\r\n" + "\r\n".join(rows) + "\r\n", encoding="utf-8")
+    err = _error(capsys, path, "--op", "FIC101.OP", "--pv", "FIC101.PV")
+    assert f"time goes backwards in column 'Time': {rows[11].split(';')[0]!r} (line 13) -> " \
+        f"{rows[12].split(';')[0]!r} (line 14)" in err
