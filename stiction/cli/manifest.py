@@ -20,6 +20,7 @@ from typing import Any
 from ..diagnosis.analyze import PROCESSES
 from ._common import UsageError
 from .loop import LoopOptions
+from .table import read_text
 
 __all__ = ["COLUMNS", "Loop", "read_manifest"]
 
@@ -41,7 +42,7 @@ class Loop:
 
 def read_manifest(path: Path, base: LoopOptions) -> list[Loop]:
     """The loops ``path`` lists, each with ``base`` under its own cells."""
-    lines = _text(path).splitlines()
+    lines = read_text(path, named=" (--manifest)")[0].splitlines()
     numbered = [(i + 1, line) for i, line in enumerate(lines) if line.strip()]
     if not numbered:
         raise UsageError(f"{path}: empty manifest (need a header row naming the column 'file')")
@@ -62,19 +63,6 @@ def read_manifest(path: Path, base: LoopOptions) -> list[Loop]:
     if len(rows) < 2:
         raise UsageError(f"{path}: no loop listed under the header")
     return [_loop(path, n, names, row, base) for n, row in rows[1:]]
-
-
-def _text(path: Path) -> str:
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise UsageError(f"{path}: no such file (--manifest)") from None
-    except OSError as exc:
-        raise UsageError(f"cannot read {path}: {exc.strerror or exc}") from exc
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("cp1252", errors="replace")
 
 
 def _loop(manifest: Path, line: int, names: list[str], row: list[str], base: LoopOptions
