@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import UsageError
+from .decimals import is_number
 
 __all__ = ["JITTER", "OFF_GRID", "Stamps", "grid", "on_grid"]
 
@@ -103,7 +104,7 @@ def _backwards(path: Path, name: str, stamps: Stamps, i: int) -> str:
         return (f"{head}, where the header repeats at line {joined[0]}: two exports appended "
                 "that overlap in time; remove the overlap, or export the whole stretch at once")
     hour = 3000 <= stamps.seconds[i] - stamps.seconds[i + 1] <= 3700
-    if stamps.zone is not None and hour:
+    if stamps.zone is not None and hour and not is_number(stamps.written[i]):  # local times
         return (f"{head}: an hour back, the end of summer time in local time stamps? Give "
                 "--tz with the historian's zone (e.g. --tz Europe/Berlin), or export in UTC "
                 "or with the zone")

@@ -290,8 +290,10 @@ def _numeric_times(table: Table, col: int, cells: Sequence[str], values: np.ndar
     rows would be 1/86400 s apart."""
     notes = [how] if how else []
     name = table.header[col]
+    zone: dt.tzinfo | None = None
     unit = stamps.epoch_unit(values)
-    if unit is not None:
+    if unit is not None:  # shown as date-times (UTC): the file's numbers are not seconds
+        zone = dt.UTC
         word, per_second = unit
         values = values / per_second
         first = dt.datetime.fromtimestamp(float(values[0]), dt.UTC)
@@ -305,7 +307,7 @@ def _numeric_times(table: Table, col: int, cells: Sequence[str], values: np.ndar
             f"{stamps.serial_text(float(values[0]))})? Read as seconds, its rows would be a "
             "fraction of a second apart. Format the column as date-times before saving the "
             "file (e.g. 2024-03-01 06:00:00), or give --ts S for rows at a fixed interval")
-    return Stamps(values, cells, table.lines, None, tuple(notes), table.appended)
+    return Stamps(values, cells, table.lines, zone, tuple(notes), table.appended)
 
 
 EXPORT_START = dt.datetime(2024, 3, 1, 6, 0, 0, tzinfo=dt.UTC)

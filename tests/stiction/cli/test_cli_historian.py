@@ -518,3 +518,24 @@ def test_a_preamble_before_the_header_is_skipped_and_said(
     err = _error(capsys, path, "--op", "FIC101.OP", "--pv", "FIC101.PV")
     assert f"time goes backwards in column 'Time': {rows[11].split(';')[0]!r} (line 13) -> " \
         f"{rows[12].split(';')[0]!r} (line 14)" in err
+
+
+def test_a_plot_of_unix_milliseconds_is_on_date_times(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], loop: tuple[np.ndarray, ...],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The plot's axis of a column in Unix milliseconds: date-times in UTC, not seconds
+    labelled as the export's time (the export wrote milliseconds)."""
+    figure = pytest.importorskip("matplotlib.figure")
+    figures: list = []
+    monkeypatch.setattr(figure.Figure, "savefig", lambda self, *a, **k: figures.append(self))
+    t, op, pv = loop
+    start = int(UTC0.timestamp())
+    rows = [[str(round((start + float(a)) * 1000)), f"{b:.4f}", f"{c:.4f}"]
+            for a, b, c in zip(t, op, pv, strict=True)]
+    path = _write(tmp_path / "epoch.csv", ("t_stamp", "FIC101.OP", "FIC101.PV"), rows, ",")
+    assert main(["analyze", str(path), "--time", "t_stamp", "--op", "FIC101.OP", "--pv",
+                 "FIC101.PV", "--plot", str(tmp_path / "a.png")]) == 0
+    ax_op, ax_pv, _ = figures[0].axes
+    assert ax_op.lines[0].get_xdata()[0] == UTC0
+    assert ax_pv.get_xlabel() == "time (UTC, as the export's time stamps)"
+    capsys.readouterr()
