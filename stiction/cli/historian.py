@@ -98,35 +98,38 @@ def read_signals(table: Table, columns: Sequence[tuple[str, str]], time: str | N
     t_col = time_choice(table, time, ts)
     if len(table.rows) < 2:
         raise UsageError(f"{table.path}: {len(table.rows)} samples, need at least 2")
+    t = None
     if t_col is not None:
-        table = oldest_first(table, t_col)
+        table, t = oldest_first(table, t_col)
     notes = list(table.notes)
     series = []
     for col in cols:
         x, note = numbers(table, col)
         series.append(x)
         notes += [note] if note else []
-    if t_col is None:
+    if t_col is None or t is None:
         assert ts is not None
         return Signals(series, float(ts), None, None, notes, table)
-    t = times(table, t_col)
     ts_grid, series, grid_notes = grid(table.path, table.header[t_col], t, series)
     return Signals(series, ts_grid, t, t_col, notes + grid_notes, table)
 
 
-def oldest_first(table: Table, t_col: int) -> Table:
-    """``table`` with its rows oldest first: an export written newest first (time going
-    back on every row, never forward) is turned round, and a note says so; any other
-    order is left for :func:`grid` to judge (time going back somewhere is refused)."""
-    t = times(table, t_col).seconds
-    steps = np.diff(t)
-    if t.size < 2 or not (np.all(steps <= 0) and np.any(steps < 0)):
-        return table
+def oldest_first(table: Table, t_col: int) -> tuple[Table, Stamps]:
+    """``table`` with its rows oldest first, and its time column read (:func:`times`): an
+    export written newest first (time going back on every row, never forward) is turned
+    round, a note says so, and its times are read again in that order (the date form and
+    midnight of times of day are judged in time order); any other order is left for
+    :func:`grid` to judge (time going back somewhere is refused)."""
+    t = times(table, t_col)
+    steps = np.diff(t.seconds)
+    if t.seconds.size < 2 or not (np.all(steps <= 0) and np.any(steps < 0)):
+        return table, t
     name = table.header[t_col]
     note = (f"rows newest first (column {name!r} from {table.rows[0][t_col].strip()!r} back "
             f"to {table.rows[-1][t_col].strip()!r}): read oldest first")
-    return dataclasses.replace(table, rows=table.rows[::-1], lines=table.lines[::-1],
-                               notes=(*table.notes, note))
+    table = dataclasses.replace(table, rows=table.rows[::-1], lines=table.lines[::-1],
+                                notes=(*table.notes, note))
+    return table, times(table, t_col)
 
 
 def _cells(table: Table, col: int) -> list[str]:

@@ -83,8 +83,9 @@ def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, 
                                              dict[str, np.ndarray], list[str]]:
     table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     t_col = historian.time_choice(table, args.time, args.ts)
+    t = None
     if t_col is not None and len(table.rows) >= 2:
-        table = historian.oldest_first(table, t_col)
+        table, t = historian.oldest_first(table, t_col)
     notes = list(table.notes)
     header = [h for i, h in enumerate(table.header) if i != t_col]
     cols = [i for i in range(len(table.header)) if i != t_col]
@@ -102,7 +103,7 @@ def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, 
     keys = sorted(series)
     if t_col is not None:
         ts, gridded, more = historian.grid(args.file, table.header[t_col],
-                                           historian.times(table, t_col),
+                                           t if t is not None else historian.times(table, t_col),
                                            [series[j] for j in keys])
         series = dict(zip(keys, gridded, strict=True))
         notes += more
