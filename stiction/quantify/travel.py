@@ -58,7 +58,7 @@ from numpy.typing import ArrayLike
 
 from .._errors import ParameterError
 from .._validate import FloatArray
-from ..signal.arrays import median
+from ..signal.arrays import median, medians
 from ..signal.noise import noise_sd
 
 __all__ = ["FOLLOWS", "NOT_RESPONDING", "STICKS", "UNUSABLE", "Travel", "measure_travel"]
@@ -132,7 +132,7 @@ def running_median(x: FloatArray, width: int = MEDIAN) -> FloatArray:
     half = width // 2
     padded = np.concatenate((np.full(half, x[0]), x, np.full(half, x[-1])))
     windows = np.lib.stride_tricks.sliding_window_view(padded, width)
-    return np.asarray(np.median(windows, axis=1), dtype=np.float64)
+    return medians(windows)
 
 
 def _moves(pos: FloatArray, h: float) -> tuple[list[int], list[int]]:
