@@ -95,7 +95,8 @@ def _fmt(x: float | None, spec: str = ".3g") -> str:
 def _band(name: str, value: float | None, bounds: tuple[float, float], unit: str) -> str:
     lo, hi = bounds
     if value is None:
-        return f"{name:<11} not measured: no move bounded it (more than {lo:.3g} {unit})"
+        more = f" (more than {lo:.3g} {unit})" if lo > 0 else ""
+        return f"{name:<11} not measured: no move bounded it{more}"
     if value == 0.0:
         return f"{name:<11} none seen (below the smallest step, {hi:.3g} {unit})"
     shown = f"{lo:.3g} .. {hi:.3g}" if math.isfinite(hi) else f"more than {lo:.3g}"

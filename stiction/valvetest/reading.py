@@ -151,4 +151,6 @@ def read_gain(levels: FloatArray, size: FloatArray, moved: NDArray[np.bool_],
         return single, (
             "the valve never moved twice the same way: the process gain (and every travel "
             "from PV) is read from single steps, which may include the dead band",)
-    return None, ("no step moved the valve",)
+    return None, ("no step moved the valve: its band is wider than the OP travel the test "
+                  "made (or the response does not show the valve); a larger test is the "
+                  "crew's decision",)
