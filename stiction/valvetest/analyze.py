@@ -35,7 +35,7 @@ __all__ = ["SOURCES", "StepResult", "StepTestDetails", "StepTestReport", "analyz
 
 SOURCES = ("pv", "position")
 PROCESSES = ("auto", "self-regulating", "integrating")
-SHOWN_UNREAD = 3  # unreadable steps named in the notes (the rest counted)
+SHOWN_UNREAD = 3  # disturbed holds named in the notes (the rest counted)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -215,14 +215,19 @@ def _start_and_disturbed(holds: Holds, moves: Moves, ts: float, dyn: Dynamics,
 
 
 def _unread(results: list[StepResult]) -> tuple[str, ...]:
-    """One note on the steps that cannot be read: how many, and the first few."""
+    """One note on the steps that cannot be read: how many, and why (each kind of reason
+    once, with its first step)."""
     bad = [r for r in results if r.moved is None]
     if not bad:
         return ()
-    shown = "; ".join(f"{r.time_s:.0f} s: {r.why}" for r in bad[:SHOWN_UNREAD])
-    more = f"; and {len(bad) - SHOWN_UNREAD} more" if len(bad) > SHOWN_UNREAD else ""
-    return (f"{len(bad)} of {len(results)} steps cannot be read, so they bound nothing "
-            f"({shown}{more})",)
+    kinds: dict[str, list[StepResult]] = {}
+    for r in bad:
+        kinds.setdefault(str(r.why).split(":")[0], []).append(r)
+    why = "; ".join(f"{len(rs)} {rs[0].why} (the first at {rs[0].time_s:.0f} s)"
+                    if len(rs) > 1 else f"at {rs[0].time_s:.0f} s: {rs[0].why}"
+                    for rs in kinds.values())
+    return (f"{len(bad)} of {len(results)} steps cannot be read, so they bound nothing: "
+            f"{why}",)
 
 
 def _report(b: Bands, *, scale: float, source: str, dyn: Dynamics, gain: float | None,

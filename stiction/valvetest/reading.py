@@ -11,8 +11,9 @@ sign of the process gain), is read as an operator reads the trend:
 * **did not move**: it stayed further below what a step followed in full would give
   (the OP step times the process gain) than that margin;
 * **cannot be read** (``unread``, with the reason): neither of the two (a step whose full
-  response is within the noise around it), a response *against* the step beyond the
-  noise (something else moved PV), or a disturbed hold beside the step
+  response is within the noise around it; every step that did not move the valve where
+  none did and no ``kp`` says what a followed step shows), a response *against* the step
+  beyond the noise (something else moved PV), or a disturbed hold beside the step
   (:data:`.response.DISTURBED_SD`). Such a step is neither a move nor a lower bound of
   one (:mod:`.bands`).
 
@@ -79,7 +80,8 @@ def read_steps(holds: Holds, moves: Moves, *, source: str, kp: float | None) -> 
     moved = (along > margin) & (steps != 0) & ~beside
 
     def still(gain: float | None) -> NDArray[np.bool_]:
-        full = np.abs(steps) * abs(gain) if gain is not None else np.full(steps.size, np.inf)
+        # without a gain, what a step followed in full shows is unknown: none is sure
+        full = np.abs(steps) * abs(gain) if gain is not None else np.zeros(steps.size)
         out: NDArray[np.bool_] = ~moved & (along < full - margin) & (along > -margin) & ~beside
         return out
 
@@ -98,7 +100,9 @@ def read_steps(holds: Holds, moves: Moves, *, source: str, kp: float | None) -> 
         gain, gain_notes = read_gain(holds.level, moves.size, moved, still(big))
         notes += gain_notes
     unread = ~moved & ~still(gain)
-    full = np.abs(steps) * abs(gain) if gain is not None else np.full(steps.size, np.inf)
+    if not moved.any() and unread.all():
+        notes = []  # the reason of every step says it
+    full = None if gain is None else np.abs(steps) * abs(gain)
     why = tuple(_why(k, along, margin, full, beside) if unread[k] else None
                 for k in range(steps.size))
     return Reading(moved, unread, why, gain, tuple(notes))
@@ -114,12 +118,15 @@ def _single_steps(steps: FloatArray, size: FloatArray, moved: NDArray[np.bool_]
     return float(np.median(size[sel] / steps[sel]))
 
 
-def _why(k: int, along: FloatArray, margin: FloatArray, full: FloatArray,
+def _why(k: int, along: FloatArray, margin: FloatArray, full: FloatArray | None,
          beside: NDArray[np.bool_]) -> str:
     if beside[k]:
         return "a disturbance during the hold before or after it"
     if along[k] <= -margin[k]:
         return "the response went against the step: something else moved it"
+    if full is None:
+        return ("without the process gain (no step moved the valve, no kp given), a step "
+                "the valve did not follow cannot be told from one lost in the noise: give kp")
     return (f"within the noise: a step followed in full moves the response "
             f"{full[k]:.2g}, the noise around it {margin[k]:.2g}")
 

@@ -161,3 +161,27 @@ def test_bands_are_physical_whatever_the_steps_say(seed: int) -> None:
         assert band.value is None or band.low <= band.value <= band.high
         assert band.value is None or math.isfinite(band.value)
     assert b.slip is None or b.slip >= 0.0
+
+
+def test_a_valve_the_test_never_moved_is_read_through_kp_only() -> None:
+    """fs 30 %: the 24 small steps (0.5-2 % of span, within 4 % of 50) never move it. From
+    PV alone a step the valve did not follow cannot be told from one lost in the noise:
+    every step unread, no figure, the reason says to give kp; with kp the dead band is
+    more than half the OP range the test covered; from the position likewise."""
+    levels = [50.0]
+    for size in (0.5, 1.0, 2.0):
+        for direction, n in ((1, 2), (-1, 4), (1, 2)):
+            levels += [levels[-1] + direction * size * i for i in range(1, n + 1)]
+    run = simulate_step_test(HeValve(0.3, 0.27, 1.0), levels, hold=50, tau=12.0,
+                             noise_sd=0.02, position_noise_sd=0.02, seed=6)
+    r = analyze_step_test(run.op[0], run.pv[0], 1.0, op_range=(0.0, 100.0))
+    physical(r)
+    assert r.deadband is None and r.deadband_bounds[0] == 0.0
+    assert all(s.moved is None for s in r.steps) and r.dead_time_s is None
+    assert any("give kp" in n for n in r.notes)
+    for got in (analyze_step_test(run.op[0], run.pv[0], 1.0, op_range=(0.0, 100.0), kp=1.0),
+                analyze_step_test(run.op[0], run.vp[0], 1.0, source="position",
+                                  op_range=(0.0, 100.0))):
+        physical(got)
+        assert all(s.moved is False for s in got.steps)
+        assert got.deadband is None and got.deadband_bounds[0] == pytest.approx(4.0)
