@@ -131,8 +131,8 @@ def _check(op: ArrayLike, response: ArrayLike, ts: float, *, source: str, proces
         if source == "position":
             raise ParameterError("kp", "is PV's process gain: the valve position is read "
                                  "in OP's units, without it")
-        if not (math.isfinite(kp) and kp != 0):
-            raise ParameterError("kp", f"must be a finite number other than 0, was {kp!r}")
+        if float(v.finite("kp", kp)) == 0.0:
+            raise ParameterError("kp", "must not be 0")
     if np.isfinite(y).sum() < 10:
         raise NotAStepTest(f"the {_name(source)} holds fewer than 10 numbers")
     return o, y, v.positive_scalar("ts", ts)

@@ -112,7 +112,8 @@ def split_holds(op: FloatArray) -> Holds:
                if np.unique(sign[a:b + 1]).size > 1]
     if share > 0.25 or len(turning) > max(2, run_a.size // 4):
         raise NotAStepTest(f"OP changes in {moving.size} of {sign.size} samples (it moves "
-                           f"continuously, as in automatic or a ramp, not in steps): {NEEDS}")
+                           "continuously, as in automatic or a continuous ramp, not in "
+                           f"steps): {NEEDS}")
     # holds between the runs; a hold shorter than MIN_HOLD joins the runs around it
     starts = np.concatenate(([0], run_b + 1))
     ends = np.concatenate((run_a + 1, [op.size]))  # exclusive: run_a + 1 left the hold
