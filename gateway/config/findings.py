@@ -4,7 +4,9 @@ a valve, kept by the plant under version control beside the config (docs/configu
 
 A CSV file like a tag list: the first line that is not empty or a ``#`` comment is the
 header, naming the columns of :data:`COLUMNS` in any order and any case (``,``, ``;`` or
-tab separated; a spreadsheet's UTF-8 byte-order mark is ignored), then one finding per row::
+tab separated, or as a first line ``sep=;`` says; empty columns after the last named one
+are ignored), then one finding per row; the text as a spreadsheet saves it (UTF-8, UTF-16,
+Windows-1252), a cell in double quotes over several lines: :mod:`.csvfile`::
 
     loop,date,finding,fd,fs,by,note
     FIC101,2024-03-05,stiction,2.5,3.1,J. Doe,packing tightened
@@ -18,7 +20,6 @@ that cannot be read at all (missing, unreadable, no header) says so in ``problem
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import datetime as dt
 import math
@@ -26,6 +27,8 @@ import re
 from collections.abc import Collection
 from pathlib import Path
 from typing import Any
+
+from .csvfile import DecodeError, decode, records
 
 __all__ = ["COLUMNS", "FINDINGS", "MAX_FINDINGS_BYTES", "REQUIRED", "Finding", "FindingsFile",
            "findings_path", "parse_findings", "read_findings", "verdicts_path"]
@@ -106,24 +109,26 @@ def read_findings(path: str | Path, loops: Collection[str], *, today: dt.date,
         return FindingsFile(source, (), (f"{source}: larger than {MAX_FINDINGS_BYTES:,} bytes,"
                                          " the most a findings file may have",), readable=False)
     try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        return FindingsFile(source, (), (f"{source}: line {line}: not UTF-8 (save the file "
-                                         "as UTF-8)",), readable=False)
+        text = decode(data)
+    except DecodeError as exc:
+        return FindingsFile(source, (), (f"{source}: line {exc.line}: neither UTF-8 nor "
+                                         "Windows-1252 (save the file as CSV UTF-8)",),
+                            readable=False)
     return parse_findings(text, source, loops, today=today)
 
 
 def parse_findings(text: str, source: str, loops: Collection[str], *, today: dt.date
                    ) -> FindingsFile:
-    lines = [(n, line) for n, line in enumerate(text.splitlines(), start=1)
-             if line.strip() and not line.lstrip().startswith("#")]
-    if not lines:
+    delimiter, rows = records(text)
+    first = next(rows, None)
+    if first is None:
         return FindingsFile(source, (), (f"{source}: no header row (columns: "
                                          f"{', '.join(COLUMNS)})",), readable=False)
-    head_line, head = lines[0]
-    delimiter = max(",;\t", key=head.count)
-    header = [c.strip().lower() for c in next(csv.reader([head], delimiter=delimiter))]
+    head_line, cells = first
+    header = [c.strip().lower() for c in cells]
+    while header and not header[-1]:  # a spreadsheet's empty columns after the last
+        header.pop()
+    named = len(header)
     where = f"{source}: line {head_line}"
     problems = [f"{where}: unknown column {c!r} (known: {', '.join(COLUMNS)})"
                 for c in dict.fromkeys(header) if c not in COLUMNS]
@@ -135,12 +140,13 @@ def parse_findings(text: str, source: str, loops: Collection[str], *, today: dt.
         return FindingsFile(source, (), tuple(problems), readable=False)
     out: list[Finding] = []
     seen: dict[tuple[Any, ...], int] = {}
-    for n, line in lines[1:]:
-        cells = next(csv.reader([line], delimiter=delimiter))
-        if len(cells) != len(header):
+    for n, record in rows:
+        cells = record[:named] if not "".join(record[named:]).strip() else record
+        if len(cells) != named:  # (empty cells after the last named column are no cells)
             problems.append(f"{source}: line {n} has {len(cells)} cells, the header has "
-                            f"{len(header)}: make the row one cell per column (an empty "
-                            "cell for an empty value)")
+                            f"{named}: make the row one cell per column (an empty "
+                            "cell for an empty value; a cell holding the delimiter or a "
+                            "line break in double quotes)")
             continue
         row = {c: cell.strip() for c, cell in zip(header, cells, strict=True)}
         finding, why = _row(row, n, loops, today, delimiter != ",")
