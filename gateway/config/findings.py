@@ -39,7 +39,7 @@ stick-slip: worn linkage, loose positioner), ``ok`` (the valve is fine: the caus
 elsewhere), ``other`` (a valve problem of another kind: sized wrong, cavitating, ...)."""
 COLUMNS: dict[str, str] = {
     "loop": "the loop's name, as in the config",
-    "date": "when the crew found it: YYYY-MM-DD (a date-time's date is taken)",
+    "date": "when the crew found it: YYYY-MM-DD (a date-time's date is taken), from 1970",
     "finding": "one of " + ", ".join(FINDINGS),
     "fd": "dynamic friction (or dead band) measured, % of span (optional)",
     "fs": "static friction measured, % of span (optional)",
@@ -50,6 +50,10 @@ REQUIRED = ("loop", "date", "finding")
 MAX_FINDINGS_BYTES = 8 * 1024 * 1024
 """A findings file larger than this is not read (the gateway keeps what it had)."""
 MAX_TEXT = 500  # characters of ``by`` and ``note`` kept
+FIRST_DATE = dt.date(1970, 1, 2)
+"""The earliest date a finding may have: before it, no gateway had a verdict (Unix time and
+the verdict history begin in 1970; a day later, so that its local midnight is a Unix time
+in every time zone). ``0001-01-01`` is many maintenance systems' "no date"."""
 _DAY_FIRST = re.compile(r"(\d{1,2})\.(\d{1,2})\.(\d{4})")
 
 
@@ -179,6 +183,10 @@ def _row(row: dict[str, str], n: int, loops: Collection[str], today: dt.date,
                       f"{today.isoformat()})")
     if date > today + dt.timedelta(days=1):
         return None, f"column 'date': {date.isoformat()} is in the future"
+    if date < FIRST_DATE:
+        return None, (f"column 'date': {row['date']!r} is before {FIRST_DATE.year} (the "
+                      "'no date' of a maintenance system's export?): write the day the crew "
+                      "found it")
     kind = row["finding"].lower()
     if kind not in FINDINGS:
         return None, (f"column 'finding': must be one of {', '.join(FINDINGS)}, "

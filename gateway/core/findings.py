@@ -38,9 +38,14 @@ def local_day(t: float) -> int:
     return dt.datetime.fromtimestamp(t).date().toordinal()
 
 
-def day_start(date: dt.date) -> float:
-    """Unix time of the local midnight that begins ``date``."""
-    return dt.datetime.combine(date, dt.time()).timestamp()
+def day_start(date: dt.date) -> float | None:
+    """Unix time of the local midnight that begins ``date``; None where the platform has
+    none (a date near year 1 or 9999: the findings file refuses those, and a scrape must
+    never fail on one)."""
+    try:
+        return dt.datetime.combine(date, dt.time()).timestamp()
+    except (ValueError, OverflowError, OSError):
+        return None
 
 
 @dataclasses.dataclass

@@ -133,7 +133,7 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
             f = latest.get(name)
             found.append((("none" if f is None else f.finding, name), 1.0))
             if f is not None:
-                when.append(((name,), day_start(f.date)))
+                _add(when, name, day_start(f.date))
         current = st.verdict_name(i)
         verdict.extend(((name, v), 1.0 if v == current else 0.0) for v in VERDICTS)
         number, its_role = roles.get(name, (0, ""))
