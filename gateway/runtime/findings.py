@@ -108,10 +108,11 @@ def agreement_table(config: Config, book: FindingsBook, history_note: str) -> st
                  + (f" ({100 * hit / calls:.0f} %)" if calls else "")
                  + f"; sticking valves the gateway had called: {hit} of {found}"
                  + (f" ({100 * hit / found:.0f} %)" if found else ""))
-    if view.compared:
+    compared = book.compared()
+    if compared:
         lines += ["", f"{'loop':<16} {'date':<10} {'finding':<9} {'fd %':>5} {'fs %':>5} "
                       f"{'verdict that day':<20} by, note"]
-    for f, verdict in view.compared:
+    for f, verdict in compared:
         fd = "" if f.fd is None else f"{f.fd:g}"
         fs = "" if f.fs is None else f"{f.fs:g}"
         who = ", ".join(x for x in (f.by, f.note) if x)
