@@ -23,6 +23,7 @@ Each check adds one problem line naming the section and the key:
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import os
 import resource
@@ -32,6 +33,7 @@ from typing import Any
 
 from ..wire.registers import IDENTIFICATION_OBJECTS
 from .model import Config
+from .reading import bounded, open_regular
 from .schema import Problems
 
 __all__ = ["FDS_BASE", "FDS_PER_DEVICE", "FDS_PER_WORKER", "bind_check", "check_config",
@@ -159,31 +161,35 @@ def _check_memory(problems: Problems, config: Config) -> None:
 
 
 def _check_state_file(problems: Problems, config: Config) -> None:
-    state = Path(config.gateway.state_file)
-    source = Path(config.source)
+    try:  # a stat or an open on a hung mount never returns: bounded (config/reading.py)
+        problem = bounded(_state_file_problem, Path(config.gateway.state_file),
+                          Path(config.source))
+    except OSError as exc:
+        problem = f"{config.gateway.state_file}: {exc.strerror or exc}"
+    if problem is not None:
+        problems.add("gateway", "state_file", problem)
+
+
+def _state_file_problem(state: Path, source: Path) -> str | None:
     if source.is_file() and (state.resolve() == source.resolve()
                              or (state.exists() and os.path.samefile(state, source))):
-        problems.add("gateway", "state_file", f"{state} is this config file: the gateway "
-                     "would overwrite it with its state")
-        return
+        return f"{state} is this config file: the gateway would overwrite it with its state"
     if state.is_dir():
-        problems.add("gateway", "state_file", f"{state} is a directory; name a file in it")
-        return
-    if state.exists() and not _state_like(state):
-        problems.add("gateway", "state_file", f"{state} exists and is not a gateway state "
-                     "file (not a zip archive): the gateway would set it aside and write "
-                     "its state there; name another file")
-
-
-def _state_like(path: Path) -> bool:
-    """Empty, or a zip archive (a state file, maybe truncated, or a foreign one: both are
-    set aside at start with a warning)."""
+        return f"{state} is a directory; name a file in it"
+    if not state.exists():
+        return None
     try:
-        with open(path, "rb") as fh:
+        with open_regular(state) as fh:
             head = fh.read(4)
-    except OSError:
-        return True  # unreadable: the gateway reports it when it starts
-    return head in (b"", b"PK\x03\x04")
+    except OSError as exc:
+        if exc.errno == errno.EINVAL:  # a FIFO, a device: never a state file
+            return f"{state} {exc.strerror}"
+        return None  # unreadable: the gateway reports it when it starts
+    if head not in (b"", b"PK\x03\x04"):  # empty, or a zip archive (maybe truncated, or a
+        # foreign one: both are set aside at start with a warning)
+        return (f"{state} exists and is not a gateway state file (not a zip archive): the "
+                "gateway would set it aside and write its state there; name another file")
+    return None
 
 
 # ---------------------------------------------------------------------------- listeners

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from .csvfile import DecodeError, decode, records
+from .reading import read_bytes
 
 __all__ = ["COLUMNS", "FINDINGS", "MAX_FINDINGS_BYTES", "REQUIRED", "Finding", "FindingsFile",
            "findings_path", "parse_findings", "read_findings", "verdicts_path"]
@@ -104,8 +105,7 @@ def read_findings(path: str | Path, loops: Collection[str], *, today: dt.date,
     """Read and check a findings file against the config's ``loops``; never raises."""
     source = shown_as or str(path)
     try:
-        with open(path, "rb") as fh:
-            data = fh.read(MAX_FINDINGS_BYTES + 1)
+        data = read_bytes(path, MAX_FINDINGS_BYTES)  # a regular file, within a time limit
     except OSError as exc:
         return FindingsFile(source, (), (f"{source}: cannot read: {exc.strerror or exc}",),
                             readable=False)

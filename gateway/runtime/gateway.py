@@ -131,7 +131,8 @@ class Gateway:
     # ------------------------------------------------------------------ life cycle
 
     async def __aenter__(self) -> Gateway:
-        load_findings(self.findings, read_configured(self.config))  # never fails
+        # never fails; bounded in time and off the event loop (config/reading.py)
+        load_findings(self.findings, await asyncio.to_thread(read_configured, self.config))
         try:  # sinks first: the state file is restored before anything else takes time
             binding = self.runtime.binding()
             for sink in self.sinks.values():

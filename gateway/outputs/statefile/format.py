@@ -38,7 +38,7 @@ and every field is checked (:mod:`.validate`) before anything is restored.
 
 from __future__ import annotations
 
-import io
+import errno
 import json
 import math
 import os
@@ -46,12 +46,13 @@ import time
 import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ...config.model import Config
+from ...config.reading import open_regular
 from ...core.points import Quality
 from ...core.store import ResultStore
 from ...core.windows import LoopGroup, loop_signature, result_signature
@@ -67,7 +68,9 @@ READ_VERSIONS = (1, 2)  # what read_state accepts: version 1 has no positions
 
 
 class StateError(Exception):
-    """The state file cannot be used; ``kind`` is ``corrupt`` or ``foreign``."""
+    """The state file cannot be used; ``kind`` is ``corrupt`` or ``foreign`` (set aside), or
+    ``unreadable`` (not a regular file, or the file system did not answer in time: left
+    where it is, the next write replaces it)."""
 
     def __init__(self, kind: str, message: str) -> None:
         super().__init__(message)
@@ -153,16 +156,23 @@ def read_state(path: str | os.PathLike[str], *, max_bytes: int = DEFAULT_MAX_BYT
     in all, *before* anything is decompressed; every array must have the type and shape
     its bank's header says, every header field its type and range
     (:func:`.validate.check_header`), with at most ``max_loops`` loops."""
-    p = Path(path)
     try:
-        size = p.stat().st_size
+        fh = open_regular(path)  # never a FIFO: it would block the read
     except OSError as exc:
-        raise StateError("corrupt", f"cannot read it: {exc.strerror or exc}") from None
+        kind = "unreadable" if exc.errno == errno.EINVAL else "corrupt"
+        raise StateError(kind, f"cannot read it: {exc.strerror or exc}") from None
+    with fh:
+        return _read_archive(fh, max_bytes=max_bytes, max_loops=max_loops)
+
+
+def _read_archive(fh: BinaryIO, *, max_bytes: int, max_loops: int
+                  ) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+    size = os.fstat(fh.fileno()).st_size
     if size > max_bytes:
         raise StateError("corrupt", f"{size:,} bytes, more than the {max_bytes:,} a state "
                          f"file of this config can need")
     try:
-        archive = zipfile.ZipFile(io.BytesIO(p.read_bytes()))
+        archive = zipfile.ZipFile(fh)  # read member by member: never the whole file at once
     except Exception as exc:  # untrusted bytes: whatever zipfile makes of them
         raise StateError("corrupt", f"not a readable state archive: {exc}") from None
     with archive:

@@ -30,14 +30,17 @@ from numpy.typing import NDArray
 
 from stiction import Assessment
 
+from ...config import reading
 from ...config.model import Config
+from ...config.reading import bounded
 from ...core.points import MAX_MAGNITUDE, Quality
 from ...core.store import LoopResult, ResultStore
 from ...core.ticks import STALE_POLLS
 from ...core.windows import LoopGroup, load_columns, loop_signature, result_signature
 from .format import StateError, read_state, set_aside, state_bounds
 
-__all__ = ["UNKNOWN_DOWNTIME_ROWS", "RestoreReport", "restore_state", "seq_bump"]
+__all__ = ["UNKNOWN_DOWNTIME_ROWS", "Read", "RestoreReport", "apply_state",
+           "read_for_restore", "restore_state", "seq_bump"]
 
 log = logging.getLogger("gateway.state")
 
@@ -55,25 +58,68 @@ class RestoreReport:
     gap_rows: int = 0
     set_aside: Path | None = None
     problem: str | None = None
-    kind: str | None = None  # why it was set aside: corrupt, foreign
+    kind: str | None = None  # why it was not restored: corrupt, foreign (set aside),
+    # unreadable (left where it is)
     clock_back_s: float = 0.0  # how far the wall clock was behind the file's last write
 
 
-def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[LoopGroup],
-                  store: ResultStore, *, wall: float, time_scale: float) -> RestoreReport:
-    """Restore what matches ``config`` into fresh ``banks`` and ``store``. Never raises for
-    a bad file: it is set aside (one log line) and the report says why; the gateway starts
-    empty."""
-    report = RestoreReport()
-    p = Path(path)
+Read = tuple[dict[str, Any], dict[str, NDArray[Any]]] | StateError | None
+"""What :func:`read_for_restore` found: the header and arrays, why the file is unusable, or
+None (no file)."""
+
+
+def read_for_restore(path: str | os.PathLike[str], banks: Sequence[LoopGroup],
+                     timeout_s: float | None = None) -> Read:
+    """The state file read and checked for ``banks`` (temporary files of a killed write
+    removed), in a thread of its own bounded by ``timeout_s`` (default
+    :data:`gateway.config.reading.STATE_READ_TIMEOUT_S`)
+    (:func:`gateway.config.reading.bounded`); never raises. Thread-safe: it touches nothing
+    of the running gateway, so the gateway may call it off its event loop."""
+    max_bytes, max_loops = state_bounds(banks)
+    try:
+        return bounded(_read_file, Path(path), max_bytes, max_loops,
+                       timeout_s=reading.STATE_READ_TIMEOUT_S if timeout_s is None
+                       else timeout_s)
+    except StateError as exc:
+        return exc
+    except OSError as exc:  # the file system did not answer in time
+        return StateError("unreadable", exc.strerror or str(exc))
+    except Exception as exc:  # untrusted bytes: whatever the checks let through
+        return StateError("corrupt", f"cannot be read: {type(exc).__name__}: {exc}")
+
+
+def _read_file(p: Path, max_bytes: int, max_loops: int) -> Read:
     for tmp in p.parent.glob(f".{p.name}.tmp-*"):  # left by a kill in the middle of a write
         with contextlib.suppress(OSError):
             tmp.unlink()
     if not p.exists():
+        return None
+    return read_state(p, max_bytes=max_bytes, max_loops=max_loops)
+
+
+def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[LoopGroup],
+                  store: ResultStore, *, wall: float, time_scale: float) -> RestoreReport:
+    """Read the state file (:func:`read_for_restore`) and restore what matches ``config``
+    into fresh ``banks`` and ``store`` (:func:`apply_state`)."""
+    return apply_state(read_for_restore(path, banks), path, config, banks, store, wall=wall,
+                       time_scale=time_scale)
+
+
+def apply_state(got: Read, path: str | os.PathLike[str], config: Config,
+                banks: Sequence[LoopGroup], store: ResultStore, *, wall: float,
+                time_scale: float) -> RestoreReport:
+    """Restore what :func:`read_for_restore` read and matches ``config`` into fresh
+    ``banks`` and ``store`` (on the event loop: the store's subscribers hear of it). Never
+    raises for a bad file: it is set aside (one log line) and the report says why; the
+    gateway starts empty."""
+    report = RestoreReport()
+    p = Path(path)
+    if got is None:
         return report
-    max_bytes, max_loops = state_bounds(banks)
     try:
-        header, arrays = read_state(p, max_bytes=max_bytes, max_loops=max_loops)
+        if isinstance(got, StateError):
+            raise got
+        header, arrays = got
         _apply(report, p, header, arrays, config=config, banks=banks, store=store,
                wall=wall, time_scale=time_scale)
     except StateError as exc:
@@ -89,6 +135,9 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
 
 def _refuse(report: RestoreReport, p: Path, exc: StateError) -> None:
     report.problem, report.kind = str(exc), exc.kind
+    if exc.kind == "unreadable":  # a FIFO, a hung mount: nothing to move, or no answer
+        log.error("state file %s: %s; starting fresh (the next write replaces it)", p, exc)
+        return
     try:
         report.set_aside = set_aside(p, exc.kind)
     except OSError as err:
