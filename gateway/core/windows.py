@@ -100,6 +100,14 @@ class WindowBank:
         rows = np.ix_(self._order(), np.asarray(columns, dtype=np.intp))
         return self.position[rows].T.copy()
 
+    def rows(self) -> tuple[NDArray[np.float64], F32, F32, NDArray[np.uint8], F32 | None]:
+        """Chronological copies of every loop as stored, time-major: t (m,), op/pv/quality
+        and position (None: the bank holds none) (m, loops). One copy of the bank, already
+        in the state file's layout (:meth:`series` copies twice, once transposed)."""
+        order = self._order()
+        return (self.t[order], self.op[order], self.pv[order], self.quality[order],
+                None if self.position is None else self.position[order])
+
     def latest(self) -> tuple[F32, F32, NDArray[np.uint8]]:
         """The newest sample of every loop (NaN / MISSING before the first append)."""
         i = (self.head - 1) % self.size

@@ -20,7 +20,7 @@ import contextlib
 import logging
 import os
 import time
-from collections.abc import Callable, Coroutine, Iterable, Sequence
+from collections.abc import AsyncIterator, Callable, Coroutine, Iterable, Sequence
 from concurrent.futures import Executor
 from types import TracebackType
 from typing import Any
@@ -28,6 +28,7 @@ from typing import Any
 from prometheus_client import CollectorRegistry
 
 from ..config import Config
+from ..config.checks import ANALYSIS_BATCH_LOOPS
 from ..config.plugins import output_plugin
 from ..core.findings import FindingsBook
 from ..core.store import ResultStore
@@ -62,7 +63,8 @@ class Gateway:
 
     def __init__(self, config: Config, *, registry: CollectorRegistry | None = None,
                  analyze: str = DEFAULT_ANALYZE, serve_http: bool = True,
-                 batch_size: int = 64, persist: bool = False, outputs: Sequence[str] = (),
+                 batch_size: int = ANALYSIS_BATCH_LOOPS, persist: bool = False,
+                 outputs: Sequence[str] = (),
                  executor: Callable[[], Executor] | None = None,
                  clocks: Clocks | None = None) -> None:
         self.registry = registry if registry is not None else CollectorRegistry()
@@ -190,7 +192,8 @@ class Gateway:
             try:
                 config = (source if isinstance(source, Config)
                           else await read_new_config(source))
-                await self._apply(config)
+                async with exclusive(self.sinks.values()):  # no state write meanwhile
+                    await self._apply(config)
             except ReloadRefused as refused:
                 self.metrics.reload_failures.labels(stage=refused.stage).inc()
                 log.error("reload refused, keeping the running config: %s", refused.line)
@@ -266,6 +269,19 @@ def create_sinks(names: Sequence[str], binding: Binding, **options: Any) -> dict
             raise ValueError(f"unknown output {name!r}")
         sinks[name] = plugin.create_sink(binding, **options)
     return sinks
+
+
+@contextlib.asynccontextmanager
+async def exclusive(sinks: Iterable[Sink]) -> AsyncIterator[None]:
+    """Hold every sink's ``exclusive`` lock (the state file's: a write's snapshot is a copy
+    of the windows), so that a reload makes its new windows only when no such copy exists:
+    never two copies at once (the memory check-config counts, config/checks.py)."""
+    async with contextlib.AsyncExitStack() as held:
+        for sink in sinks:
+            lock = getattr(sink, "exclusive", None)
+            if lock is not None:
+                await held.enter_async_context(lock)
+        yield
 
 
 async def _bind_all(sinks: dict[str, Sink], binding: Binding) -> None:

@@ -42,6 +42,7 @@ from typing import Any
 
 from stiction import Assessment
 
+from ..config.checks import ANALYSIS_BATCH_LOOPS
 from ..config.model import Config, HysteresisSettings, PlantSettings
 from ..core.hysteresis import VerdictFilter
 from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolve
@@ -114,7 +115,7 @@ class AnalysisScheduler:
     ``executor`` (tests) replaces the process pool by another executor, e.g. one thread."""
 
     def __init__(self, groups: Sequence[LoopGroup], store: ResultStore, *,
-                 interval_wall_s: float, workers: int = 0, batch_size: int = 64,
+                 interval_wall_s: float, workers: int = 0, batch_size: int = ANALYSIS_BATCH_LOOPS,
                  analyze: str = DEFAULT_ANALYZE,
                  on_duration: Callable[[float], None] | None = None,
                  nice: int = WORKER_NICE,

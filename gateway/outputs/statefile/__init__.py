@@ -46,7 +46,9 @@ class StateFile:
         self.saves = 0
         self.last_save_s = 0.0  # wall time the last write took
         self.report: RestoreReport | None = None
-        self._lock = asyncio.Lock()
+        # held by a write (its snapshot is a copy of the windows) and by a reload, which
+        # makes new windows beside the old: never both copies at once (config/checks.py)
+        self.exclusive = asyncio.Lock()
         self.writes = PeriodicWrites(
             "state file", lambda: self.path, self.save,
             lambda: self.binding.config.gateway.persist_interval_s, log=log,
@@ -76,7 +78,7 @@ class StateFile:
     async def save(self, *, final: bool = False) -> int:
         """Write the state file now (atomically); returns its size in bytes. ``final``: the
         last write before a normal exit (no assessment follows)."""
-        async with self._lock:
+        async with self.exclusive:
             b = self.binding
             wall = self.wall()
             header, arrays = snapshot(b.config, b.groups, b.store, wall=wall,

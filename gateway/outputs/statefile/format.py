@@ -92,14 +92,13 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                               "banks": []}
     arrays: dict[str, NDArray[Any]] = {}
     for k, b in enumerate(banks):
-        t, op, pv, q = b.bank.series(np.arange(len(b.configs)))
-        arrays[f"b{k}_t"] = t
-        arrays[f"b{k}_op"] = np.ascontiguousarray(op.T)
-        arrays[f"b{k}_pv"] = np.ascontiguousarray(pv.T)
-        arrays[f"b{k}_q"] = np.ascontiguousarray(q.T)
-        pos = b.bank.positions(np.arange(len(b.configs)))
+        # one copy of the windows (issue 38 item 4: a chronological copy and then a
+        # transposed one held three times the windows at each write)
+        t, op, pv, q, pos = b.bank.rows()
+        arrays[f"b{k}_t"], arrays[f"b{k}_op"], arrays[f"b{k}_pv"] = t, op, pv
+        arrays[f"b{k}_q"] = q
         if pos is not None:
-            arrays[f"b{k}_pos"] = np.ascontiguousarray(pos.T)
+            arrays[f"b{k}_pos"] = pos
         loops = []
         for cfg in b.configs:
             entry: dict[str, Any] = {"name": cfg.name,
@@ -124,8 +123,26 @@ def write_state(path: str | os.PathLike[str], header: Mapping[str, Any],
     """Write atomically (:func:`gateway.outputs.base.write_atomically`: tmp + fsync + rename
     + fsync dir); returns the bytes written."""
     blob = np.frombuffer(json.dumps(header, allow_nan=True).encode(), dtype=np.uint8)
-    return write_atomically(
-        path, lambda f: np.savez(f, header=blob, **arrays))  # type: ignore[arg-type]
+    return write_atomically(path, lambda f: _savez(f, {"header": blob, **arrays}))
+
+
+CHUNK_BYTES = 1 << 20
+"""What a write or a read of the state file holds beside the arrays (numpy's own savez
+held a whole array's bytes, up to 16 MiB, and a read each member's bytes beside its array)."""
+
+
+def _savez(f: BinaryIO, arrays: Mapping[str, NDArray[Any]]) -> None:
+    """What ``np.savez`` writes (an uncompressed zip of ``.npy`` members, ZIP64), each
+    array's data written from the array in :data:`CHUNK_BYTES` pieces, never copied whole."""
+    with zipfile.ZipFile(f, "w", zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for name, arr in arrays.items():
+            arr = np.ascontiguousarray(arr)
+            with zf.open(f"{name}.npy", "w", force_zip64=True) as out:
+                np.lib.format.write_array_header_1_0(
+                    out, np.lib.format.header_data_from_array_1_0(arr))
+                data = arr.reshape(-1).view(np.uint8)
+                for at in range(0, len(data), CHUNK_BYTES):
+                    out.write(data[at:at + CHUNK_BYTES].tobytes())
 
 
 # ------------------------------------------------------------------------ reading
@@ -256,10 +273,16 @@ def _array(archive: zipfile.ZipFile, info: zipfile.ZipInfo | None, dtype: np.dty
         nbytes = math.prod(shape) * dtype.itemsize
         if nbytes > info.file_size:
             raise ValueError(f"{what}: shape {shape} needs more bytes than the member holds")
-        data = f.read(nbytes)
-    if len(data) != nbytes:
-        raise ValueError(f"{what}: truncated")
-    return np.frombuffer(data, dtype=dtype).reshape(shape)
+        arr = np.empty(shape, dtype=dtype)
+        into = arr.reshape(-1).view(np.uint8)
+        at = 0
+        while at < nbytes:  # in pieces: never the member's bytes beside the array
+            piece = f.read(min(CHUNK_BYTES, nbytes - at))
+            if not piece:
+                raise ValueError(f"{what}: truncated")
+            into[at:at + len(piece)] = np.frombuffer(piece, dtype=np.uint8)
+            at += len(piece)
+    return arr
 
 
 def set_aside(path: Path, kind: str) -> Path:

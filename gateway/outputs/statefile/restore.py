@@ -167,9 +167,10 @@ def _position(arrays: dict[str, NDArray[Any]], k: int, c: int) -> NDArray[Any] |
     pos = arrays.get(f"b{k}_pos")
     if pos is None:
         return None
-    col = pos[:, c]
+    col = pos[:, c]  # a view: the array read is the restore's own (no copy per column)
     with np.errstate(invalid="ignore"):
-        return np.where(np.abs(col) <= MAX_MAGNITUDE, col, np.float32(np.nan))
+        col[~(np.abs(col) <= MAX_MAGNITUDE)] = np.nan
+    return col
 
 
 def _plausible(op: NDArray[Any], pv: NDArray[Any], q: NDArray[Any]
