@@ -1,7 +1,8 @@
 """Restoring the state file into fresh windows and a fresh store, loop by loop.
 
 A loop's window comes back when its *window signature* (device connection and sample time,
-window length, OP/PV point definitions) is unchanged, and its latest assessment when the
+OP/PV point definitions; its length aside: the newest samples the window holds now) is
+unchanged, and its latest assessment when the
 whole loop config is also unchanged; other loops start fresh. The time the gateway was down
 becomes a gap (quality MISSING) in the restored windows. A file that cannot be read or is not
 ours is set aside with a warning; the gateway starts fresh and never crashes on it.
@@ -76,8 +77,9 @@ def read_for_restore(path: str | os.PathLike[str], banks: Sequence[LoopGroup],
     (:func:`gateway.config.reading.bounded`); never raises. Thread-safe: it touches nothing
     of the running gateway, so the gateway may call it off its event loop."""
     max_bytes, max_loops = state_bounds(banks)
+    keep = {cfg.name: g.bank.size for g in banks for cfg in g.configs}
     try:
-        return bounded(_read_file, Path(path), max_bytes, max_loops,
+        return bounded(_read_file, Path(path), max_bytes, max_loops, keep,
                        timeout_s=reading.STATE_READ_TIMEOUT_S if timeout_s is None
                        else timeout_s)
     except StateError as exc:
@@ -88,13 +90,13 @@ def read_for_restore(path: str | os.PathLike[str], banks: Sequence[LoopGroup],
         return StateError("corrupt", f"cannot be read: {type(exc).__name__}: {exc}")
 
 
-def _read_file(p: Path, max_bytes: int, max_loops: int) -> Read:
+def _read_file(p: Path, max_bytes: int, max_loops: int, keep: dict[str, int]) -> Read:
     for tmp in p.parent.glob(f".{p.name}.tmp-*"):  # left by a kill in the middle of a write
         with contextlib.suppress(OSError):
             tmp.unlink()
     if not p.exists():
         return None
-    return read_state(p, max_bytes=max_bytes, max_loops=max_loops)
+    return read_state(p, max_bytes=max_bytes, max_loops=max_loops, keep=keep)
 
 
 def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[LoopGroup],
@@ -211,8 +213,10 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
         last_t = None
         for col, cfg in enumerate(ref.configs):
             hit = saved.get(cfg.name)
-            if hit is None or hit[2].get("signature") != loop_signature(config, cfg):
-                report.fresh.append(cfg.name)
+            saved_size = header["banks"][hit[0]]["size"] if hit is not None else None
+            if hit is None or hit[2].get("signature") != loop_signature(config, cfg,
+                                                                        samples=saved_size):
+                report.fresh.append(cfg.name)  # (a window of another length: its newest)
                 continue
             k, c, entry = hit
             t = arrays[f"b{k}_t"]
