@@ -9,7 +9,9 @@ object is ever unpickled) holding
 * ``header``: UTF-8 JSON as a uint8 array - ``format`` (``stiction-gateway-state``),
   ``version``, the wall and process time of the save, and per window bank its sample time,
   its loops (name + window signature) and per loop the latest assessment
-  (:meth:`stiction.Assessment.to_dict`) with its sequence number, time and window fill,
+  (:meth:`stiction.Assessment.to_dict`) with its sequence number, time and window fill
+  (and, read when present, when its verdict was judged and whether it was held: a held
+  verdict's age survives a restart),
   the loop's last sequence number, whether the write was the last before a normal exit
   (``clean``) and the analysis interval (how far sequence numbers may have moved on after
   an unclean exit);
@@ -125,7 +127,8 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                 if any(a[k] != _DEFAULTS.get(k) for k in a if k not in V1_ASSESSMENT):
                     header["version"] = VERSION
                 entry["result"] = {"assessment": a, "seq": res.seq, "t": res.t,
-                                   "window_fill": res.window_fill, "samples": res.samples}
+                                   "window_fill": res.window_fill, "samples": res.samples,
+                                   "judged": res.judged_at, "hold": res.hold}
             loops.append(entry)
         header["banks"].append({"ts": b.ts, "size": b.bank.size, "loops": loops,
                                 **({} if pos is None else {"position": True})})

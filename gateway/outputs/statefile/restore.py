@@ -231,10 +231,13 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
             if res is not None and entry.get("result_signature") == result_signature(config,
                                                                                        cfg):
                 try:
+                    judged = float(res.get("judged", res["t"]))  # a held verdict's age
                     lr = LoopResult(Assessment.from_dict(res["assessment"]),
                                     int(res["seq"]) + bump,
                                     float(res["t"]), float(res["window_fill"]),
-                                    int(res["samples"]))
+                                    int(res["samples"]),
+                                    None if judged == float(res["t"]) else judged,
+                                    int(res.get("hold", 0)))
                 except (KeyError, TypeError, ValueError) as exc:
                     log.warning("state file %s: loop %s: result unreadable (%s)", p,
                                 cfg.name, exc)

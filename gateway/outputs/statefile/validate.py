@@ -136,6 +136,10 @@ def _result(r: Any, where: str) -> None:
     _number(r["t"], f"{where}.t", 0.0, MAX_WALL)
     _number(r["window_fill"], f"{where}.window_fill", 0.0, 1.0)
     _integer(r["samples"], f"{where}.samples", 0, MAX_WINDOW)
+    if "judged" in r:  # since issue 35 item 5 (the release before ignores it)
+        _number(r["judged"], f"{where}.judged", 0.0, MAX_WALL)
+    if "hold" in r:
+        _integer(r["hold"], f"{where}.hold", 0, 2)
 
 
 def _loop(entry: Any, where: str) -> None:
