@@ -35,11 +35,13 @@ from ..core.store import ResultStore
 from ..inputs.base import Source
 from ..outputs.base import Binding, Sink
 from ..outputs.prometheus import GatewayMetrics
+from ..wire.results import moved_indices, moved_line
 from .findings import load_findings, observe, read_configured, reload_findings
 from .logs import clip
 from .poller import Clocks, DevicePoller
 from .reload import (
     ReloadRefused,
+    Runtime,
     build_runtime,
     prepare_listeners,
     read_new_config,
@@ -239,7 +241,7 @@ class Gateway:
         # devices that stay keep their schedule (and their connection if their points are
         # unchanged); new devices start now
         self._polls.start(new.pollers, {n: d for n, d in due.items() if n in new.sources})
-        log.info("reloaded %s", reload_summary(old, new))
+        _log_reloaded(old, new)
 
     # ------------------------------------------------------------------ health
 
@@ -283,6 +285,15 @@ async def exclusive(sinks: Iterable[Sink]) -> AsyncIterator[None]:
             if lock is not None:
                 await held.enter_async_context(lock)
         yield
+
+
+def _log_reloaded(old: Runtime, new: Runtime) -> None:
+    """The reload's summary line, and a WARNING when loops moved in the config's order
+    (register +19 numbers them by it: issue 38 item 13)."""
+    log.info("reloaded %s", reload_summary(old, new))
+    moved = moved_indices(old.store.loops, new.store.loops)
+    if moved:
+        log.warning("reload: %s", moved_line(moved))
 
 
 async def _bind_all(sinks: dict[str, Sink], binding: Binding) -> None:

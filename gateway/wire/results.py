@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -42,6 +42,8 @@ __all__ = [
     "decode_block",
     "layout",
     "loops_per_unit",
+    "moved_indices",
+    "moved_line",
     "overlapping_blocks",
     "result_block",
     "unit_images",
@@ -304,3 +306,22 @@ def unit_images(addresses: Mapping[int, Iterable[int]], size: int = RESULT_BLOCK
     return {u: np.zeros(max([size, *(a + size for a in addrs)]), dtype=np.uint16)
             for u, addrs in addresses.items()}
 
+
+def moved_indices(old: Sequence[str], new: Sequence[str]) -> list[tuple[str, int, int]]:
+    """``(loop, old index, new index)`` (from 1) of the loops in both lists whose place
+    changed: register +19 (a plant group's source loop, by its place in the config) now
+    names another loop for a SCADA table made before (issue 38 item 13)."""
+    at = {name: k for k, name in enumerate(old, start=1)}
+    return [(name, at[name], k) for k, name in enumerate(new, start=1)
+            if name in at and at[name] != k]
+
+
+def moved_line(moved: Sequence[tuple[str, int, int]], shown: int = 5) -> str:
+    """The WARNING line for :func:`moved_indices`' loops."""
+    listed = ", ".join(f"{name} {a} -> {b}" for name, a, b in moved[:shown])
+    more = f" and {len(moved) - shown} more" if len(moved) > shown else ""
+    return (f"{len(moved)} loop(s) moved in the config's order ({listed}{more}): register "
+            "+19 (a plant group's source loop, by its place in the config) now numbers them "
+            "so; a SCADA table that maps +19 to loops needs `stiction-gateway result-map`'s "
+            "order (the extended block's +23/+24 name the source's block instead, which "
+            "does not move)")

@@ -7,7 +7,9 @@ downgrade keeps the windows, verdicts and sequence numbers; issue 35 item 7): a 
 object is ever unpickled) holding
 
 * ``header``: UTF-8 JSON as a uint8 array - ``format`` (``stiction-gateway-state``),
-  ``version``, the wall and process time of the save, and per window bank its sample time,
+  ``version``, the wall and process time of the save, the loops in config order (``order``:
+  a restart with them in another order says register +19 numbers them anew), and per
+  window bank its sample time,
   its loops (name + window signature) and per loop the latest assessment
   (:meth:`stiction.Assessment.to_dict`) with its sequence number, time and window fill
   (and, read when present, when its verdict was judged and whether it was held: a held
@@ -103,7 +105,7 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
     header: dict[str, Any] = {"format": FORMAT, "version": 1, "saved_wall": wall,
                               "saved_proc": proc, "clean": clean,
                               "analysis_interval_wall_s": g.analysis_interval_s / g.time_scale,
-                              "banks": []}
+                              "order": list(store.loops), "banks": []}
     arrays: dict[str, NDArray[Any]] = {}
     for k, b in enumerate(banks):
         # one copy of the windows (issue 38 item 4: a chronological copy and then a

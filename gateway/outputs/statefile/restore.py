@@ -38,6 +38,7 @@ from ...core.points import MAX_MAGNITUDE, Quality
 from ...core.store import LoopResult, ResultStore
 from ...core.ticks import STALE_POLLS
 from ...core.windows import LoopGroup, load_columns, loop_signature, result_signature
+from ...wire.results import moved_indices, moved_line
 from .format import StateError, read_state, set_aside, state_bounds
 
 __all__ = ["UNKNOWN_DOWNTIME_ROWS", "Read", "RestoreReport", "apply_state",
@@ -266,6 +267,9 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
                     "hand?); the downtime is unknown: a gap of at least %d samples in every "
                     "window%s", p, report.clock_back_s, UNKNOWN_DOWNTIME_ROWS,
                     "" if not bump else f", sequence numbers moved on by {bump}")
+    moved = moved_indices(header.get("order", ()), store.loops)
+    if moved:
+        log.warning("state file %s: %s", p, moved_line(moved))
     log.info("state file %s: restored %d windows and %d assessments; %d loops start fresh; "
              "downtime gap %d samples", p, report.restored_windows, report.restored_results,
              len(report.fresh), report.gap_rows)

@@ -161,6 +161,9 @@ def check_header(header: Any, max_loops: int) -> None:
         raise ValueError("clean: not true/false")
     if h.get("analysis_interval_wall_s") is not None:
         _number(h["analysis_interval_wall_s"], "analysis_interval_wall_s", 1e-6, 1e12)
+    if "order" in h:  # the loops in config order (read when valid; older files lack it)
+        for k, name in enumerate(_list(h["order"], "order", max_loops)):
+            _text(name, f"order[{k}]", 1000)
     banks = _list(h.get("banks"), "banks", max_loops)
     loops = 0
     for k, bank in enumerate(banks):
