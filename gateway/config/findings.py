@@ -42,8 +42,12 @@ COLUMNS: dict[str, str] = {
     "loop": "the loop's name, as in the config",
     "date": "when the crew found it: YYYY-MM-DD (a date-time's date is taken), from 1970",
     "finding": "one of " + ", ".join(FINDINGS),
-    "fd": "dynamic friction (or dead band) measured, % of span (optional)",
-    "fs": "static friction measured, % of span (optional)",
+    "fd": "dynamic friction fd, % of span (optional)",
+    "fs": "static friction fs, % of span (optional)",
+    "deadband": "a step test's dead band, % of span (optional): fs + fd, what `stiction "
+                "valve-test` prints as `dead band` (never write it in fd)",
+    "resolution": "a step test's resolution, % of span (optional): fs - fd; with the dead "
+                  "band, fd and fs are worked out",
     "by": "who found it (optional)",
     "note": "what was found or done (optional)",
 }
@@ -60,7 +64,9 @@ _DAY_FIRST = re.compile(r"(\d{1,2})\.(\d{1,2})\.(\d{4})")
 
 @dataclasses.dataclass(frozen=True)
 class Finding:
-    """One row: ``fd`` and ``fs`` in % of span (None: not measured); ``line`` in the file."""
+    """One row: ``fd`` and ``fs`` in % of span (None: not measured; worked out from a step
+    test's ``deadband`` and ``resolution`` where those were written); ``line`` in the
+    file."""
 
     loop: str
     date: dt.date
@@ -70,6 +76,8 @@ class Finding:
     by: str = ""
     note: str = ""
     line: int = 0
+    deadband: float | None = None  # a step test's dead band (fs + fd), as written
+    resolution: float | None = None  # and its resolution (fs - fd)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,7 +168,7 @@ def parse_findings(text: str, source: str, loops: Collection[str], *, today: dt.
                             + f": {why}")
             continue
         key = (finding.loop, finding.date, finding.finding, finding.fd, finding.fs,
-               finding.by, finding.note)
+               finding.by, finding.note, finding.deadband)
         if key in seen:
             problems.append(f"{source}: line {n}: loop {finding.loop}: repeats line "
                             f"{seen[key]}")
@@ -192,7 +200,7 @@ def _row(row: dict[str, str], n: int, loops: Collection[str], today: dt.date,
         return None, (f"column 'finding': must be one of {', '.join(FINDINGS)}, "
                       f"was {row['finding']!r}")
     sizes: dict[str, float | None] = {}
-    for col in ("fd", "fs"):
+    for col in ("fd", "fs", "deadband", "resolution"):
         cell = row.get(col, "")
         sizes[col] = None
         if cell:
@@ -201,11 +209,48 @@ def _row(row: dict[str, str], n: int, loops: Collection[str], today: dt.date,
                 return None, (f"column {col!r}: must be a number of % of span (0 to 100), "
                               f"was {cell!r}")
             sizes[col] = value
-    fd, fs = sizes["fd"], sizes["fs"]
-    if fd is not None and fs is not None and fd > fs:
-        return None, f"column 'fd': {fd:g} exceeds fs {fs:g} (fd is never above fs)"
+    fd, fs, why = _frictions(sizes["fd"], sizes["fs"], sizes["deadband"], sizes["resolution"])
+    if why:
+        return None, why
     return Finding(loop, date, kind, fd, fs, _text(row.get("by", "")),
-                   _text(row.get("note", "")), n), ""
+                   _text(row.get("note", "")), n, sizes["deadband"], sizes["resolution"]), ""
+
+
+STEP_TEST = ("a step test's dead band is fs + fd and its resolution fs - fd: write them in "
+             "'deadband' and 'resolution' and leave fd and fs empty, they are worked out")
+SLACK = 0.05  # % of span: rounding of figures written with one decimal
+
+
+def _frictions(fd: float | None, fs: float | None, deadband: float | None,
+               resolution: float | None) -> tuple[float | None, float | None, str]:
+    """fd and fs of a row, worked out from a step test's dead band (fs + fd) and resolution
+    (fs - fd) where those are written, and checked against them where both are (issue 38
+    item 12: the docs' example put a dead band in fd); a problem, or ""."""
+    if deadband is not None and resolution is not None and resolution > deadband + SLACK:
+        return None, None, (f"column 'resolution': {resolution:g} exceeds the dead band "
+                            f"{deadband:g} ({STEP_TEST})")
+    if deadband is not None:
+        if fd is None and fs is None and resolution is not None:
+            fs, fd = (deadband + resolution) / 2, (deadband - resolution) / 2
+        elif fd is not None and fs is None:
+            fs = deadband - fd
+        elif fs is not None and fd is None:
+            fd = deadband - fs
+        elif fd is not None and fs is not None and abs(fd + fs - deadband) > SLACK:
+            return None, None, (f"column 'fd': fd {fd:g} + fs {fs:g} = {fd + fs:g} is not the "
+                                f"dead band {deadband:g} ({STEP_TEST})")
+        if fd is not None and fs is not None and resolution is not None \
+                and abs(fs - fd - resolution) > SLACK:
+            return None, None, (f"column 'resolution': fs {fs:g} - fd {fd:g} = {fs - fd:g} is "
+                                f"not the resolution {resolution:g} ({STEP_TEST})")
+    elif resolution is not None:
+        return None, None, f"column 'resolution': written without a dead band ({STEP_TEST})"
+    hint = "" if deadband is None else f" ({STEP_TEST})"
+    if fd is not None and fs is not None and fd > fs + (0.0 if deadband is None else SLACK):
+        return None, None, f"column 'fd': {fd:g} exceeds fs {fs:g} (fd is never above fs){hint}"
+    if (fd is not None and fd < 0) or (fs is not None and fs < 0):
+        return None, None, f"column 'fd': below 0 with the dead band {deadband}{hint}"
+    return fd, fs, ""
 
 
 def _date(cell: str) -> dt.date | None:

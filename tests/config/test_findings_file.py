@@ -72,9 +72,11 @@ def test_every_bad_row_is_named_and_skipped(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("text", "problem"), [
-    ("", "findings.csv: no header row (columns: loop, date, finding, fd, fs, by, note)"),
+    ("", "findings.csv: no header row (columns: loop, date, finding, fd, fs, deadband, "
+         "resolution, by, note)"),
     ("loop,when,finding\nFIC101,2024-03-05,ok\n",
-     "findings.csv: line 1: unknown column 'when' (known: loop, date, finding, fd, fs, by, "
+     "findings.csv: line 1: unknown column 'when' (known: loop, date, finding, fd, fs, "
+     "deadband, resolution, by, "
      "note)"),
     ("loop,finding\nFIC101,ok\n", "findings.csv: line 1: missing column(s) 'date'"),
 ])
