@@ -15,7 +15,8 @@ docs/configuration.md):
   latest is published), or, into or out of ``stiction`` (the alarm), at once when its
   confidence of stiction differs from the published one's by at least ``margin``:
   evidence that moved that far is a change (a valve repaired, or one that began to stick),
-  not a window sliding. Between the other judgements the rounds alone decide: a weakly
+  not a window sliding; both confidences of one kind (both from the valve's travel, or
+  both from OP and PV). Between the other judgements the rounds alone decide: a weakly
   cycling loop's confidence can jump by half the scale from one round to the next (the
   demo plant's FIC102: 0.05, 0.63, 0.06), and nothing urgent hangs on those changes.
   Until then the published judgement stays, its reason saying what this round found and
@@ -42,10 +43,11 @@ import time
 from collections.abc import Callable, Iterable
 
 from stiction import Assessment, Verdict
+from stiction.diagnosis.travel import BY_TRAVEL
 
 from ..config.model import HysteresisSettings
 
-__all__ = ["FILTERED", "OUTCOMES", "VerdictFilter"]
+__all__ = ["FILTERED", "OUTCOMES", "VerdictFilter", "by_travel"]
 
 FILTERED = frozenset({Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED,
                       Verdict.NOT_OSCILLATING, Verdict.VALVE_NOT_RESPONDING})
@@ -112,9 +114,13 @@ class VerdictFilter:
 
     def _moved(self, old: Assessment, new: Assessment) -> bool:
         """Into or out of ``stiction`` (the alarm), with the confidence moved by the
-        margin: a valve repaired, or one that began to stick."""
+        margin: a valve repaired, or one that began to stick. Only confidences of one kind
+        compare: the valve's travel gives the share of its reversals that stuck, OP and PV
+        a probability, and a loop whose position is usable in some rounds and not in others
+        flipped between the two every round (issue 35)."""
         return (Verdict.STICTION in (old.verdict, new.verdict) and
                 old.confidence is not None and new.confidence is not None and
+                by_travel(old) == by_travel(new) and
                 abs(new.confidence - old.confidence) >= self.settings.margin)
 
     def _hold_warming(self, state: _Loop, new: Assessment, t: float) -> Assessment:
@@ -131,6 +137,11 @@ class VerdictFilter:
         names = set(loops)
         for name in [n for n in self._loops if n not in names]:
             del self._loops[name]
+
+
+def by_travel(a: Assessment) -> bool:
+    """Whether the valve's travel decided ``a`` (its evidence ``travel`` says so)."""
+    return any(e.test == "travel" and e.note.startswith(BY_TRAVEL) for e in a.evidence)
 
 
 def _prefixed(a: Assessment, head: str) -> Assessment:

@@ -40,7 +40,7 @@ from .quality import check_quality
 from .reasons import not_stiction, size_text, stiction_head, too_fast_to_see, unbacked_text
 from .responding import held_while_op_ran
 from .setpoint import SetpointCut, steady_stretch
-from .travel import apply_travel
+from .travel import apply_travel, frozen_reading
 
 __all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
 
@@ -258,7 +258,7 @@ def _judged(op_a: FloatArray, pv_a: FloatArray, pos_a: FloatArray | None, *, ts:
                integrating=integrating, force_quantify=force_quantify)
     if pos_a is None:
         return d
-    travel = measure_travel(op_a, pos_a, k=k, span=span)
+    travel = frozen_reading(measure_travel(op_a, pos_a, k=k, span=span), pv_a)
     return dataclasses.replace(d, assessment=apply_travel(d.assessment, travel, span=span,
                                                           k=k), travel=travel)
 
