@@ -59,10 +59,15 @@ def add_analyze(sub: Subparsers) -> None:
     g.add_argument("--time", default=None, help="time column: seconds or date-times "
                    "(default: t, time, timestamp, datetime, date time or date)")
     g.add_argument("--ts", type=float, default=None, help="sample time, s (no time column)")
-    p.add_argument("--kp", type=float, default=None, help="process gain, PV units per OP unit")
+    p.add_argument("--kp", type=float, default=None, help="process gain, PV units per OP "
+                   "unit (an integrating process: PV units per s per OP unit); gives fs and "
+                   "the jump")
     p.add_argument("--delay", type=float, default=0.0, help="process dead time, s")
     p.add_argument("--process", choices=("self-regulating", "integrating"),
-                   default="self-regulating")
+                   default="self-regulating", help="self-regulating: PV settles after the "
+                   "valve moves (flow, pressure, temperature; the default); integrating: PV "
+                   "ramps while the valve is off balance (a level). A level read as "
+                   "self-regulating sizes nothing right")
     p.add_argument("--op-range", dest="op_range", nargs=2, type=float, metavar=("LO", "HI"),
                    default=None, help="OP at 0 %% and 100 %% valve span, to report sizes in %% of "
                    "span (default: sizes in OP units; no OP range is assumed)")

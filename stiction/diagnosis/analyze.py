@@ -333,7 +333,8 @@ def _decide(op_c: FloatArray, pv_c: FloatArray, cycle: Cycle, found: Findings, *
 
     size = size_valve(op_c, pv_c, cycle, quant=quant, ts=ts, kp=kp, delay=delay,
                       integrating=integrating, k=k, pv_noise=found.noise[1],
-                      fitted_valve=_fitted_valve(found), ellipse_band=_ellipse_band(found))
+                      fitted_valve=_fitted_valve(found), ellipse_band=_ellipse_band(found),
+                      span=span)
     warnings = (*warnings, *size.warnings)
     head = stiction_head(conf, found.evidence, parts, cycle)
     if size.fd_op is None:
