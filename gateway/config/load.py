@@ -182,6 +182,7 @@ PLANT_KEYS: dict[str, Callable[[Any], Any]] = {
 HYSTERESIS_KEYS: dict[str, Callable[[Any], Any]] = {
     "rounds": s.integer(1, 1000),
     "margin": s.number(non_negative=True, at_most=1.0),
+    "band": s.number(non_negative=True, at_most=0.5),
 }
 def _block_registers(value: Any) -> int:
     """``modbus_server.block_registers``: 20 or 32."""

@@ -100,6 +100,7 @@ class HysteresisSettings:
 
     rounds: int = 5  # analysis rounds a new verdict must hold (1: every round's is published)
     margin: float = 0.5  # ... or the change of confidence that publishes it at once (0-1)
+    band: float = 0.02  # a confidence this near a threshold neither counts nor resets (0-0.5)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -15,9 +15,14 @@ docs/configuration.md):
   latest is published), or, into or out of ``stiction`` (the alarm), at once when its
   confidence of stiction differs from the published one's by at least ``margin``:
   evidence that moved that far is a change (a valve repaired, or one that began to stick),
-  not a window sliding. Between the other judgements the rounds alone decide: a weakly
+  not a window sliding; both confidences of one kind (both from the valve's travel, or
+  both from OP and PV). Between the other judgements the rounds alone decide: a weakly
   cycling loop's confidence can jump by half the scale from one round to the next (the
   demo plant's FIC102: 0.05, 0.63, 0.06), and nothing urgent hangs on those changes.
+  A round whose confidence lies within ``band`` of one of the decision's thresholds
+  (:meth:`VerdictFilter._near_threshold`) neither counts towards a change nor resets one:
+  it could have read the other way (the demo's U2.TIC201 read 0.507 against a threshold of
+  0.5 on one machine, which restarted a change that then came once its window was full).
   Until then the published judgement stays, its reason saying what this round found and
   how long it has held. Either way the published numbers are those of the published
   verdict (a size only beside ``stiction``).
@@ -47,14 +52,20 @@ import time
 from collections.abc import Callable, Iterable
 
 from stiction import Assessment, Verdict
+from stiction.diagnosis.model import load as learned_model
+from stiction.diagnosis.travel import BY_TRAVEL
 
 from ..config.model import HysteresisSettings
 
-__all__ = ["FILTERED", "HELD_BACK", "HELD_WARMING", "NOT_HELD", "OUTCOMES", "VerdictFilter"]
+__all__ = ["FILTERED", "HELD_BACK", "HELD_WARMING", "NOT_HELD", "OUTCOMES", "VerdictFilter",
+           "by_travel"]
 
 FILTERED = frozenset({Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED,
                       Verdict.NOT_OSCILLATING, Verdict.VALVE_NOT_RESPONDING})
 """The verdicts that judge a loop (module doc); the others pass at once."""
+READ_FROM_CONFIDENCE = frozenset({Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED,
+                                  Verdict.NOT_OSCILLATING})
+"""The judgements whose line to the next is a threshold of the confidence."""
 OUTCOMES = ("published", "held_back")
 HELD, HELD_END = "held", ". "
 """How a held result's reason begins, and the end of that head (no head holds ". ")."""
@@ -116,11 +127,15 @@ class VerdictFilter:
                     f"longer ago than the loop's window ({max_hold_s:.0f} s)"))
             self._loops.pop(loop, None)  # nothing judged to keep
             return new
+        near = self._near_threshold(new)
         if state is None or state.judged.verdict == new.verdict:
-            self._loops[loop] = _Loop(new, t)
+            # at its threshold it could have read the other way: a change in the making
+            # keeps its rounds
+            self._loops[loop] = _Loop(new, t, state.away if state and near is not None else 0)
             return new
         state.held_since = None
-        state.away += 1
+        if near is None:
+            state.away += 1
         if state.away >= self.settings.rounds or self._moved(state.judged, new):
             self._loops[loop] = _Loop(new, t)
             self._count("published")
@@ -131,15 +146,34 @@ class VerdictFilter:
                  f"{state.judged.confidence:.2f}" if state.judged.confidence is not None and
                  new.confidence is not None and
                  Verdict.STICTION in (state.judged.verdict, new.verdict) else "")
+        at = "" if near is None else (f", within {self.settings.band:g} of the decision's "
+                                        f"threshold {near:g}: not counted")
         return _prefixed(state.judged, (
-            f"held: this round says {new.verdict}{_conf(new)}, published when it holds "
+            f"held: this round says {new.verdict}{_conf(new)}{at}, published when it holds "
             f"{self.settings.rounds} rounds ({state.away} so far){moves}"))
+
+    def _near_threshold(self, a: Assessment) -> float | None:
+        """The decision's threshold (``no_stiction`` up to it, ``stiction`` from it) that the
+        confidence of ``a`` lies within ``band`` of, where its judgement is read from the
+        confidence; else None. Such a round could have read the other way on another
+        machine or with one sample more: it neither counts towards a change nor resets
+        one."""
+        if a.confidence is None or a.verdict not in READ_FROM_CONFIDENCE or \
+                self.settings.rounds == 1:  # rounds 1: every round's verdict is published
+            return None
+        model = learned_model()
+        return next((th for th in (model.no_stiction_at, model.stiction_at)
+                     if abs(a.confidence - th) < self.settings.band), None)
 
     def _moved(self, old: Assessment, new: Assessment) -> bool:
         """Into or out of ``stiction`` (the alarm), with the confidence moved by the
-        margin: a valve repaired, or one that began to stick."""
+        margin: a valve repaired, or one that began to stick. Only confidences of one kind
+        compare: the valve's travel gives the share of its reversals that stuck, OP and PV
+        a probability, and a loop whose position is usable in some rounds and not in others
+        flipped between the two every round (issue 35)."""
         return (Verdict.STICTION in (old.verdict, new.verdict) and
                 old.confidence is not None and new.confidence is not None and
+                by_travel(old) == by_travel(new) and
                 abs(new.confidence - old.confidence) >= self.settings.margin)
 
     def published(self, loop: str, t: float) -> tuple[float, int]:
@@ -164,6 +198,11 @@ class VerdictFilter:
         names = set(loops)
         for name in [n for n in self._loops if n not in names]:
             del self._loops[name]
+
+
+def by_travel(a: Assessment) -> bool:
+    """Whether the valve's travel decided ``a`` (its evidence ``travel`` says so)."""
+    return any(e.test == "travel" and e.note.startswith(BY_TRAVEL) for e in a.evidence)
 
 
 def _prefixed(a: Assessment, head: str) -> Assessment:
