@@ -11,6 +11,7 @@ import errno
 import logging
 import os
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -43,6 +44,9 @@ def hung(monkeypatch: pytest.MonkeyPatch) -> Any:
     monkeypatch.setattr(reading, "READ_TIMEOUT_S", 0.3)
     yield release
     release.set()
+    deadline = time.monotonic() + 30  # the abandoned reads end: the next test starts clean
+    while reading._pending and time.monotonic() < deadline:
+        time.sleep(0.01)
 
 
 def test_a_read_that_never_returns_gives_up_and_too_many_are_refused(hung: Any) -> None:
