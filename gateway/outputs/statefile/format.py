@@ -130,7 +130,8 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                     header["version"] = VERSION
                 entry["result"] = {"assessment": a, "seq": res.seq, "t": res.t,
                                    "window_fill": res.window_fill, "samples": res.samples,
-                                   "judged": res.judged_at, "hold": res.hold}
+                                   "judged": res.judged_at, "hold": res.hold,
+                                   **_listed(res)}
             loops.append(entry)
         header["banks"].append({"ts": b.ts, "size": b.bank.size, "loops": loops,
                                 **({} if pos is None else {"position": True})})
@@ -144,6 +145,13 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                     entry["result"]["assessment"] = {k: v for k, v in a.items()
                                                      if k in V1_ASSESSMENT}
     return header, arrays
+
+
+def _listed(res: Any) -> dict[str, float]:
+    """What the list worst first reads of a result (issue 39; the release before ignores
+    both): the PV's swing and since when the loop has had its verdict, where known."""
+    return {k: float(v) for k, v in (("pv_swing", res.pv_swing), ("since", res.since))
+            if v is not None and np.isfinite(v)}
 
 
 def write_state(path: str | os.PathLike[str], header: Mapping[str, Any],

@@ -140,6 +140,10 @@ def _result(r: Any, where: str) -> None:
         _number(r["judged"], f"{where}.judged", 0.0, MAX_WALL)
     if "hold" in r:
         _integer(r["hold"], f"{where}.hold", 0, 2)
+    if "pv_swing" in r:  # since issue 39 (the release before ignores them)
+        _number(r["pv_swing"], f"{where}.pv_swing", 0.0, 1e15)
+    if "since" in r:
+        _number(r["since"], f"{where}.since", 0.0, MAX_WALL)
 
 
 def _loop(entry: Any, where: str) -> None:
