@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from .._errors import ParameterError, StictionError
+from . import ranking
 from ._common import UsageError, param_option, pyplot
 from .loop import LoopOptions, analyze_file
 from .manifest import COLUMNS, Loop, read_manifest
@@ -39,6 +40,7 @@ class Row:
     file: Path | str
     shown: Mapping[str, Any] | None = None
     error: str | None = None
+    analysed: Any = dataclasses.field(default=None, repr=False, compare=False)  # .loop's
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON array's object: ``file`` and the single-file ``--json`` keys, or
@@ -65,13 +67,16 @@ def run(args: argparse.Namespace) -> int:
         rows.append(_one(loop, None if plots is None else plots[i]))
     if bar is not None:
         bar.clear()
+    rows, said = ranking.finish(rows, loops, args)  # worst first, --findings, --report
+    ranking.warn(said)
     if args.json:
         print(json.dumps([r.to_dict() for r in rows]))
     else:
-        print(table(rows, width=shutil.get_terminal_size((120, 24)).columns))
+        width = shutil.get_terminal_size((120, 24)).columns
+        print(ranking.ranked_table(table(rows, width=width - 6), rows))
     if args.csv is not None:
         write_csv(args.csv, rows)
-    for done in (args.plot, args.csv):
+    for done in (args.plot, args.csv, args.report):
         if done is not None and not args.json:
             print(f"wrote {done}")
     failed = sum(r.error is not None for r in rows)
@@ -99,7 +104,7 @@ def _one(loop: Loop, plot: Path | None) -> Row:
     except Exception as exc:  # a bug on one file: the unit's other loops are still analysed
         return Row(loop.label, error=f"internal error ({type(exc).__name__}: {exc}); please "
                                      "report it with this file")
-    return Row(loop.label, got.shown)
+    return Row(loop.label, got.shown, analysed=got)
 
 
 def _plot_names(folder: Path, loops: Sequence[Loop]) -> list[Path]:

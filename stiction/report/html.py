@@ -67,12 +67,14 @@ def _sizes(loop: Listed) -> tuple[str, str, str, str]:
     return (_num(s.fd, ".3g"), _num(s.fs, ".3g"), _num(s.jump, ".3g"), s.unit)
 
 
-def _list_rows(loops: Iterable[Listed], sections: set[str]) -> list[str]:
+def _list_rows(loops: Iterable[Listed], sections: set[int | None]) -> list[str]:
     rows = []
     for lp in loops:
         fd, fs, slip, unit = _sizes(lp)
         name = (f"<a href='#valve-{lp.rank}'>{_e(lp.name)}</a>"
-                if lp.name in sections and lp.rank is not None else _e(lp.name))
+                if lp.rank in sections else _e(lp.name))
+        if lp.source:
+            name += f"<br><small>{_e(lp.source)}</small>"
         last = lp.findings[-1] if lp.findings else None
         found = "-" if last is None else f"{_e(last.finding)} ({_e(last.date)})"
         rows.append(
@@ -92,7 +94,7 @@ LIST_HEAD = ("#", "loop", "verdict", "confidence", "suspicion", "fd", "fs", "sli
              "since", "plant-wide role", "last finding")
 
 
-def _list(report: Report, sections: set[str]) -> str:
+def _list(report: Report, sections: set[int | None]) -> str:
     shown = [lp for lp in report.loops if lp.verdict in LISTED]
     rest = [lp for lp in report.loops if lp.verdict not in LISTED]
     head = "".join(f"<th>{h}</th>" for h in LIST_HEAD)
@@ -112,6 +114,7 @@ def _facts(lp: Listed) -> str:
     fd, fs, slip, unit = _sizes(lp)
     rows = [("verdict", f"{lp.verdict}, confidence of stiction {_num(lp.confidence)} "
                         f"({lp.calibration} calibration)"),
+            *([("samples from", lp.source)] if lp.source else []),
             ("since", lp.since or "-"), ("place in the list", f"{lp.rank or '-'}, "
                                                               f"suspicion {_num(lp.score)}")]
     if lp.sizes is not None:
@@ -170,7 +173,7 @@ def render(report: Report) -> str:
     """The report as one HTML document (module doc)."""
     suspects = [lp for lp in report.loops if lp.suspect and lp.rank is not None]
     chosen = suspects[: report.sections]
-    names = {lp.name for lp in chosen}
+    places = {lp.rank for lp in chosen}
     notes = "".join(f"<p class='note'>{_e(n)}</p>" for n in report.notes)
     more = len(suspects) - len(chosen)
     tail = (f"<p class='note'>{more} more suspect valve(s) without a section: the list names "
@@ -178,7 +181,7 @@ def render(report: Report) -> str:
     return ("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
             f"<meta http-equiv='Content-Security-Policy' content=\"{CSP}\">"
             f"<title>{_e(report.title)}</title><style>{_STYLE}</style></head><body>"
-            f"<header><h1>{_e(report.title)}</h1>{notes}</header>{_list(report, names)}"
+            f"<header><h1>{_e(report.title)}</h1>{notes}</header>{_list(report, places)}"
             + "".join(_section(lp) for lp in chosen) + tail
             + (f"<p class='note'>{_e(report.generated)}</p>" if report.generated else "")
             + "</body></html>\n")

@@ -67,6 +67,7 @@ class Listed:
     travel: str = ""
     calibration: str = "shipped"
     error: str = ""
+    source: str = ""  # where its samples came from (offline: the file), "" to say nothing
 
     @property
     def suspect(self) -> bool:
