@@ -12,9 +12,10 @@ logistic regression models", Stat. Med. 23):
     p = 1 / (1 + exp(-(scale x logit(c) + offset)))
 
 ``c`` the shipped confidence, ``p`` the site's. It is fitted by Newton's method on the
-findings' log-likelihood with a Gaussian prior centred on the shipped map (scale 1, offset 0;
-strength :data:`PRIOR`, about one finding's worth): a few findings move the map a little,
-many move it far, and findings that separate perfectly give a finite slope. (Platt's own
+findings' log-likelihood with a Gaussian prior centred on the shipped map (scale 1, and no
+shift of the log-odds at the findings' mean logit; strength :data:`PRIOR`, about one
+finding's worth): a few findings move the map a little, many move it far, and findings that
+separate perfectly give a finite slope. (Platt's own
 remedy, targets of (N+1)/(N+2) and 1/(N+2), caps p at 6/7 = 0.86 with 5 sticky findings,
 under the 0.87 a call of stiction needs: every call would be withdrawn.) The map is monotone
 (scale > 0), so the site's order of its valves is the shipped one; what it moves is which of
@@ -62,7 +63,8 @@ __all__ = ["FOLDS", "LOO_MAX", "MIN_EACH", "PRIOR", "Scores", "SiteCalibration",
 MIN_EACH = 5
 """Findings of each kind (sticky, not sticky) before a site's calibration is fitted."""
 PRIOR = 1.0
-"""Strength of the prior on (scale - 1, offset): a Gaussian of variance 1 / PRIOR each."""
+"""Strength of the prior on the scale - 1 and the shift of the log-odds at the findings'
+mean logit: a Gaussian of variance 1 / PRIOR each."""
 LOO_MAX = 400
 FOLDS = 20
 _EPS = 1e-6
@@ -87,26 +89,30 @@ def _sigmoid(z: FloatArray) -> FloatArray:
 
 def platt_fit(x: ArrayLike, y: ArrayLike, *, prior: float = PRIOR) -> tuple[float, float]:
     """``(scale, offset)`` maximising the log-likelihood of ``y`` (0/1) under
-    ``sigmoid(scale x + offset)`` with the prior of the module doc (Newton's method, each
-    step halved until the objective falls: Lin, Lin & Weng 2007, "A note on Platt's
-    probabilistic outputs for support vector machines", Mach. Learn. 68)."""
+    ``sigmoid(scale x + offset)`` with the prior of the module doc, centred on the findings:
+    with ``m`` the mean of ``x``, on ``scale - 1`` and on the shift ``offset + (scale - 1) m``
+    of the log-odds at ``m`` (so that a steeper map needs no large offset to keep its centre).
+    Newton's method, each step halved until the objective falls (Lin, Lin & Weng 2007, "A note
+    on Platt's probabilistic outputs for support vector machines", Mach. Learn. 68)."""
     xs = np.asarray(x, dtype=np.float64)
     ys = np.asarray(y, dtype=np.float64)
-    theta = np.array([1.0, 0.0])
-    centre = np.array([1.0, 0.0])
+    m = float(xs.mean()) if xs.size else 0.0
+    u = xs - m
+    centre = np.array([1.0, m])  # (scale, log-odds at m) of the shipped map
+    theta = centre.copy()
 
     def objective(t: FloatArray) -> float:
-        z = t[0] * xs + t[1]
+        z = t[0] * u + t[1]
         nll = float(np.sum(np.logaddexp(0.0, z) - ys * z))
         return nll + 0.5 * prior * float(np.sum((t - centre) ** 2))
 
     f = objective(theta)
     for _ in range(100):
-        p = _sigmoid(theta[0] * xs + theta[1])
+        p = _sigmoid(theta[0] * u + theta[1])
         r = p - ys
-        grad = np.array([np.dot(r, xs), r.sum()]) + prior * (theta - centre)
+        grad = np.array([np.dot(r, u), r.sum()]) + prior * (theta - centre)
         w = p * (1.0 - p)
-        hess = np.array([[np.dot(w, xs * xs), np.dot(w, xs)], [np.dot(w, xs), w.sum()]])
+        hess = np.array([[np.dot(w, u * u), np.dot(w, u)], [np.dot(w, u), w.sum()]])
         hess += (prior + 1e-12) * np.eye(2)
         step = np.linalg.solve(hess, grad)
         size = 1.0
@@ -121,7 +127,7 @@ def platt_fit(x: ArrayLike, y: ArrayLike, *, prior: float = PRIOR) -> tuple[floa
         theta, gain, f = new, f - fn, fn
         if gain < 1e-12 * max(1.0, abs(f)):
             break
-    return float(theta[0]), float(theta[1])
+    return float(theta[0]), float(theta[1] - theta[0] * m)
 
 
 @dataclasses.dataclass(frozen=True)
