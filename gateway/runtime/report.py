@@ -28,7 +28,7 @@ from ..config.findings import Finding as LedgerFinding
 from ..config.findings import verdicts_path
 from ..config.model import Config
 from ..core.points import Quality
-from ..errors import GatewayError
+from ..errors import ConfigError
 from ..outputs.sitecal import calibration_path, read_calibration
 from ..outputs.sitecal.file import CalibrationError
 from ..outputs.statefile import read_state
@@ -215,8 +215,8 @@ def write_report(config: Config, out: str, *, since: str, now: float,
     """Build the report and write it to ``out`` (``-``: stdout); returns the loops listed."""
     try:
         since_s = parse_since(since)
-    except ValueError as exc:
-        raise GatewayError(str(exc)) from None
+    except ValueError as exc:  # bad usage: exit 2, as a bad config
+        raise ConfigError([str(exc)]) from None
     report = build_report(config, since_s=since_s, now=now, sections=sections)
     text = render(report)
     if out == "-":

@@ -6,20 +6,25 @@ of stiction off the OP's swing (tests/support/confidence_fake_analyze.py)."""
 from __future__ import annotations
 
 import datetime as dt
+import re
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 from gateway_helpers import run
 from memory_harness import FakeTime, Harness, mconfig, mloop
 
+from gateway.cli import main
 from gateway.config import parse_config
 from gateway.core.findings import FindingsBook
 from gateway.core.sitecal import SiteBook
 from gateway.inputs.memory import memory_device
 from gateway.outputs.prometheus.site import SiteCollector
 from gateway.outputs.sitecal import CalibrationFile
+from gateway.outputs.statefile import StateFile
+from gateway.outputs.verdicts import VerdictFile
 from gateway.runtime.crewlist import CrewList
 from gateway.runtime.findings import load_findings, observe, read_configured
 from gateway.runtime.scheduler import AnalysisScheduler
@@ -213,3 +218,55 @@ def test_a_contradicting_or_small_ledger_or_turning_it_off_keeps_the_shipped_one
             assert f"Calibration: shipped ({s.crew.site.view.calibration.why})" in reason
             assert reason.endswith(").")
         assert s.h.metric("stiction_site_calibration", state=state) == 1.0
+
+
+def test_the_report_lists_what_the_gateway_keeps(tmp_path: Path) -> None:
+    """`stiction-gateway report` from the state file, the verdict history, the calibration
+    file and the findings a running gateway keeps: its list in the gateway's order, the
+    site's calibration named, each suspect's section with its findings and its plots."""
+    found = [(n, "stiction") for n in SITE[:6]] + [(n, "ok") for n in SITE[6:12]]
+    raw = _raw(tmp_path, SWINGS, SITE, findings=_ledger(tmp_path, found))
+
+    async def go() -> Site:
+        s = Site(raw)
+        await s.start()
+        await s.round()
+        await s.round()
+        await s.stop()  # the calibration file written
+        binding = s.h.runtime.binding()
+        await StateFile(binding, wall=lambda: s.h.time.wall).save(final=True)
+        await VerdictFile(binding, s.book, wall=lambda: s.h.time.wall).save()
+        return s
+
+    s = run(go())
+    (tmp_path / "gw.yaml").write_text(yaml.safe_dump(raw))
+    out = tmp_path / "report.html"
+    assert main(["report", "--config", str(tmp_path / "gw.yaml"), "--since", "2w",
+                 "-o", str(out)]) == 0
+    page = out.read_text()
+    listed = re.findall(r"<tr><td class='num'>(\d+)</td><td>(?:<a [^>]*>)?([^<]*)", page)
+    ranks = {n: int(s.h.store.rank[s.h.store.index[n]]) for n in SITE}
+    assert [name for _r, name in listed] == sorted(SITE, key=ranks.__getitem__)
+    assert "calibration of the confidence: site (fitted on 6 sticky and 6 not sticky" in page
+    assert page.count("<section class='valve'") == 7  # S1-S6 and X2 are called
+    assert "The crew found it sticking on" in page and page.count("<img ") == 14
+    assert "(site calibration)" in page
+    code = main(["report", "--config", str(tmp_path / "gw.yaml"), "--since", "7 days",
+                 "-o", str(out)])
+    assert code == 2  # a period it cannot read: bad usage, said
+
+
+def test_a_calibration_file_that_cannot_be_used_is_set_aside(tmp_path: Path) -> None:
+    raw = _raw(tmp_path, SWINGS[:2], SITE[:2])
+    (tmp_path / "gw.calibration").write_text('{"format": "stiction-gateway-calibration"}')
+
+    async def go() -> Site:
+        s = Site(raw)
+        await s.start()
+        await s.stop()
+        return s
+
+    s = run(go())
+    assert s.file.set_aside is not None and s.file.set_aside.name.startswith(
+        "gw.calibration.foreign-")
+    assert (tmp_path / "gw.calibration").exists()  # written afresh at stop
