@@ -8,11 +8,15 @@ setpoint changes, noise, quantisation, units), with
   them;
 * ``slow``: every loop sampled 8 times slower than the generator draws it (a historian, or
   a gateway polling every 10-60 s: a fast loop's cycle spans a few samples);
-* ``both``: the two at once.
+* ``both``: the two at once;
+* ``deadband``: besides the sticky valves, 16 with a band of lost motion and no slip
+  (Choudhury's model with J = 0: a worn linkage, a loose positioner), which the crew finds
+  as ``deadband``, not sticking; the other loops as drawn.
 
 Each site mixes 24 sticky valves with 16 loops tuned too tight, 8 under a periodic load,
 8 carrying a sticky loop's cycle from elsewhere, 8 under a ramping load and 8 quiet ones
-(72 loops), drawn from seeds no corpus uses (31-33). Simulated once and cached in
+(72 loops; ``deadband``: the 16 valves with lost motion, 8 tuned too tight and no
+propagated cycle), drawn from seeds no corpus uses (31-34). Simulated once and cached in
 ``lab/.cache`` (keyed by the generator's and this module's source).
 """
 
@@ -29,16 +33,18 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from lab import _cache
-from stiction.models.valves import HeState
+from stiction.models.valves import ChoudhuryValve, HeState
 from stiction.scenarios import realistic
 from stiction.scenarios.draws import Draw, draw
 
 __all__ = ["MIX", "SITES", "AsymmetricValve", "site_records"]
 
-SITES = ("asymmetric", "slow", "both")
+SITES = ("asymmetric", "slow", "both", "deadband")
 MIX = (("stiction", 24), ("tuning", 16), ("disturbance", 8), ("propagated", 8),
        ("ramp-load", 8), ("noise", 8))
-SEEDS = {"asymmetric": 31, "slow": 32, "both": 33}
+DEADBAND_MIX = (("stiction", 24), ("deadband", 16), ("tuning", 8), ("disturbance", 8),
+                ("ramp-load", 8), ("noise", 8))
+SEEDS = {"asymmetric": 31, "slow": 32, "both": 33, "deadband": 34}
 SLOW = 8.0
 
 
@@ -79,13 +85,21 @@ def _asymmetric(draws: Sequence[Draw]) -> AsymmetricValve:
     return AsymmetricValve(fs * ratio, fd * ratio, fs, fd, k)
 
 
+def _mix(site: str) -> tuple[tuple[str, int], ...]:
+    return DEADBAND_MIX if site == "deadband" else MIX
+
+
 def _draws(site: str) -> list[Draw]:
     seed = SEEDS[site]
     out = []
-    for cause, count in MIX:
-        for i in range(count * (3 if cause == "stiction" else 1)):  # (sticky draws that
-            # never slip are dropped: spare ones)
-            d = draw(cause, i, seed)
+    for cause, count in _mix(site):
+        # (valves that never move are dropped: spare ones)
+        for i in range(count * (3 if cause in ("stiction", "deadband") else 1)):
+            if cause == "deadband":  # a stiction draw whose valve has lost motion, no slip
+                d = draw("stiction", 1000 + i, seed)
+                d.valve = "deadband"
+            else:
+                d = draw(cause, i, seed)
             if site in ("slow", "both"):
                 d.ts *= SLOW
             if cause == "stiction" and site in ("asymmetric", "both"):
@@ -98,16 +112,23 @@ def _simulated(site: str) -> list[dict[str, Any]]:
     valve = realistic._valve
 
     def patched(kind: str, draws: Sequence[Draw]) -> Any:
-        return _asymmetric(draws) if kind == "asymmetric" else valve(kind, draws)
+        if kind == "asymmetric":
+            return _asymmetric(draws)
+        if kind == "deadband":  # Choudhury's model without slip: a band of lost motion
+            return ChoudhuryValve(np.array([x.s for x in draws]), np.zeros(len(draws)))
+        return valve(kind, draws)
 
     with mock.patch.object(realistic, "_valve", patched):
         recs = realistic._run(_draws(site), SEEDS[site])
     out: list[dict[str, Any]] = []
-    for cause, count in MIX:
-        mine = sorted((r for r in recs if r.cause == cause), key=lambda r: r.index)[:count]
-        out += [{"cause": r.cause, "index": r.index, "ts": r.ts, "process": r.process,
-                 "op": r.op, "pv": r.pv, "op_range": r.op_range, "sticky": r.sticky,
-                 "description": r.description} for r in mine]
+    for cause, count in _mix(site):
+        real = "stiction" if cause == "deadband" else cause
+        mine = sorted((r for r in recs if r.cause == real
+                       and (r.index >= 1000) == (cause == "deadband")),
+                      key=lambda r: r.index)[:count]
+        out += [{"cause": cause, "index": r.index, "ts": r.ts, "process": r.process,
+                 "op": r.op, "pv": r.pv, "op_range": r.op_range,
+                 "sticky": cause == "stiction", "description": r.description} for r in mine]
     return out
 
 
@@ -115,6 +136,7 @@ def site_records(site: str, log: Callable[[str], None] = print) -> list[dict[str
     """The site's records (cached): dicts of cause, ts, process, op, pv, op_range, sticky."""
     key = hashlib.sha256((inspect.getsource(realistic) + inspect.getsource(_simulated)
                           + inspect.getsource(_draws) + inspect.getsource(_asymmetric)
+                          + repr(_mix(site))
                           + site).encode()).hexdigest()[:12]
     path = _cache.root() / f"site-{site}-{key}.pickle"
     if path.exists():

@@ -2,14 +2,15 @@
 
 **Simulated sites** whose valves differ from the development corpus (bench/_sites.py:
 sticky valves gripping harder one way with less overshoot, a historian sampling 8 times
-slower, both): 72 loops each, 24 with a sticky valve. Every loop is analysed as the gateway
-analyses it (its process and OP range known); the crew then checks the 20 valves at the
-top of the shipped list (worst first: what a crew does with it) and records what it finds;
-the site's calibration is fitted on those 20 findings (stiction.ranking.fit_site, the rule
-of docs/configuration.md) and every loop judged with it (recalibrate). The table: the
-`stiction` calls before (shipped) and after (the site's), with how many of them are sticky
-(precision) and how many of the sticky valves are called (recall), on the 52 loops the crew
-did not check (what the fit never saw) and on all 72.
+slower, both; valves with lost motion and no slip, which the crew finds as a dead band):
+72 loops each, 24 with a sticky valve. Every loop is analysed as the gateway analyses it
+(its process and OP range known). Each site is split in two halves at random; the crew
+checks the 20 valves at the top of one half's shipped list (worst first: what a crew does
+with it) and records what it finds; the site's calibration is fitted on those 20 findings
+(stiction.ranking.fit_site, the rule of docs/configuration.md) and judges the other half
+(recalibrate), and the other way round, so that every loop is judged once by a fit that never
+saw it. The table: the `stiction` calls before (shipped) and after (the site's), how many of
+them are sticky (precision) and how many of the sticky valves are called (recall).
 
 **Plant records** (../shared/data/plant-stictiongpt, 80 records of 34 tags; read its
 README's caveats): leave one tag out. For each tag, the other tags' records are findings
@@ -75,10 +76,21 @@ def _judge(rows: list[Judged], cal: SiteCalibration) -> list[Judged]:
                                                     no_stiction_at=no)) for r in rows]
 
 
+def _fold(rows: list[Judged], train: list[int], test: list[int]
+          ) -> tuple[list[Judged], SiteCalibration, str]:
+    """The crew checks the top of ``train``'s shipped list; the fit judges ``test``."""
+    order = sorted(train, key=lambda k: -(rows[k].shipped.confidence or 0.0))
+    checked = order[:FINDINGS]
+    cal = _fit([rows[k].shipped.confidence or 0.0 for k in checked],
+               [rows[k].sticky for k in checked], [rows[k].name for k in checked])
+    sticky = sum(rows[k].sticky for k in checked)
+    return _judge([rows[k] for k in test], cal), cal, f"{sticky} st, {len(checked) - sticky} ok"
+
+
 def simulated_sites() -> None:
-    print(f"\nSimulated sites: the crew checks the top {FINDINGS} of the shipped list; the "
-          "site's calibration fitted on those findings")
-    print(f"{'site':<11} {'loops':>5} {'findings':>13}  {'calibration':<12} {'on':<13} "
+    print(f"\nSimulated sites, two folds each: the crew checks the top {FINDINGS} of one half's "
+          "shipped list; the site's calibration fitted on those findings judges the other half")
+    print(f"{'site':<11} {'loops':>5}  {'findings':<24} {'calibration':<14} "
           f"{'before (shipped)':<44} after (the site's)")
     for site in SITES:
         t0 = time.perf_counter()
@@ -86,19 +98,21 @@ def simulated_sites() -> None:
         rows = [Judged(f"{site}-{k}", bool(r["sticky"]),
                        analyze(r["op"], r["pv"], ts=r["ts"], process=r["process"],
                                op_range=r["op_range"])) for k, r in enumerate(recs)]
-        order = sorted(range(len(rows)), key=lambda k: -(rows[k].shipped.confidence or 0.0))
-        checked = set(order[:FINDINGS])
-        c = [rows[k].shipped.confidence or 0.0 for k in sorted(checked)]
-        y = [rows[k].sticky for k in sorted(checked)]
-        cal = _fit(c, y, [rows[k].name for k in sorted(checked)])
-        judged = _judge(rows, cal)
-        unseen = [r for k, r in enumerate(judged) if k not in checked]
-        found = f"{sum(y)} st, {len(y) - sum(y)} ok"
-        for label, part in (("not checked", unseen), ("all", judged)):
-            print(f"{site:<11} {len(rows):>5} {found:>13}  {cal.name:<12} {label:<13} "
-                  f"{_said(*_counts(part, 'shipped')):<44} {_said(*_counts(part, 'site'))}")
-        print(f"{'':<11} calibration: {cal.why}; scale {cal.scale:.2f}, offset "
-              f"{cal.offset:.2f} ({time.perf_counter() - t0:.0f} s)")
+        perm = np.random.default_rng(39).permutation(len(rows)).tolist()
+        half = [perm[::2], perm[1::2]]
+        judged, said, cals = [], [], []
+        for train, test in ((half[0], half[1]), (half[1], half[0])):
+            got, cal, found = _fold(rows, train, test)
+            judged += got
+            said.append(found)
+            cals.append(cal)
+        names = "/".join(c.name for c in cals)
+        print(f"{site:<11} {len(rows):>5}  {' | '.join(said):<24} {names:<14} "
+              f"{_said(*_counts(judged, 'shipped')):<44} {_said(*_counts(judged, 'site'))}")
+        for k, cal in enumerate(cals):
+            print(f"{'':<11} fold {k + 1}: {cal.why}; scale {cal.scale:.2f}, offset "
+                  f"{cal.offset:.2f}")
+        print(f"{'':<11} ({time.perf_counter() - t0:.0f} s)")
 
 
 def _plant() -> list[tuple[str, bool, Assessment]]:

@@ -21,14 +21,8 @@ from typing import Any
 
 from ...config.reading import bounded
 from ...core.sitecal import SiteBook, SiteView, state_of
-from ..base import Binding, PeriodicWrites, in_thread
-from .file import (
-    CalibrationError,
-    calibration_path,
-    read_calibration,
-    set_aside,
-    write_calibration,
-)
+from ..base import Binding, PeriodicWrites, in_thread, remove_temporaries, set_aside
+from .file import CalibrationError, calibration_path, read_calibration, write_calibration
 
 __all__ = ["CalibrationFile", "calibration_path", "create_sink", "read_calibration"]
 
@@ -88,7 +82,7 @@ class CalibrationFile:
         p = self.path
         max_loops = 2 * len(self.binding.config.loops) + 1000
         try:
-            if not bounded(_clean, p):
+            if not bounded(remove_temporaries, p):
                 return None
             return read_calibration(p, max_loops=max_loops)
         except OSError as exc:
@@ -124,11 +118,3 @@ class CalibrationFile:
 
     async def stop(self) -> None:
         await self.writes.stop()
-
-
-def _clean(p: Path) -> bool:
-    """Remove the temporary files of a write killed half-way; whether ``p`` exists."""
-    for tmp in p.parent.glob(f".{p.name}.tmp-*"):
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-    return p.exists()

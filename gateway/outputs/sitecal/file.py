@@ -16,12 +16,10 @@ and the gateway starts its confidence history afresh and fits again from the fin
 
 from __future__ import annotations
 
-import datetime as dt
 import errno
 import json
 import math
 import os
-import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -30,16 +28,15 @@ from stiction.ranking import SiteCalibration
 
 from ...config.reading import read_bytes
 from ...core.sitecal import RETENTION_DAYS
-from ..base import write_atomically
+from ..base import check_days, write_atomically
 
 __all__ = ["FORMAT", "VERSION", "CalibrationError", "calibration_path", "read_calibration",
-           "set_aside", "write_calibration"]
+           "write_calibration"]
 
 FORMAT = "stiction-gateway-calibration"
 VERSION = 1
 MAX_WALL = 1e11
 BYTES_PER_LOOP = 40 * (RETENTION_DAYS + 2) + 2000
-_FIRST, _LAST = dt.date(1970, 1, 1).toordinal(), dt.date(9999, 12, 31).toordinal()
 
 
 class CalibrationError(Exception):
@@ -131,22 +128,7 @@ def _loop(name: Any, entry: Any) -> None:
             or not 0 < len(days) == len(conf) <= RETENTION_DAYS + 1:
         raise ValueError(f"{where}: days and conf must be lists of 1 .. "
                          f"{RETENTION_DAYS + 1} entries, as many of each")
-    last = _FIRST - 1
-    for k, day in enumerate(days):
-        try:
-            ordinal = dt.date.fromisoformat(day).toordinal() if isinstance(day, str) \
-                and len(day) == 10 else None
-        except ValueError:
-            ordinal = None
-        if ordinal is None or not last < ordinal <= _LAST:
-            raise ValueError(f"{where}.days[{k}]: not a date after the one before")
-        last = ordinal
+    check_days(days, where)
     for k, c in enumerate([*conf, entry["latest"]]):
         _number(c, f"{where}.conf[{k}]", 0.0, 1.0)
     _number(entry["t"], f"{where}.t", 0.0, MAX_WALL)
-
-
-def set_aside(path: Path, kind: str) -> Path:
-    dest = path.with_name(f"{path.name}.{kind}-{time.strftime('%Y%m%dT%H%M%S')}")
-    os.replace(path, dest)
-    return dest
