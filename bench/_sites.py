@@ -11,7 +11,10 @@ setpoint changes, noise, quantisation, units), with
 * ``both``: the two at once;
 * ``deadband``: besides the sticky valves, 16 with a band of lost motion and no slip
   (Choudhury's model with J = 0: a worn linkage, a loose positioner), which the crew finds
-  as ``deadband``, not sticking; the other loops as drawn.
+  as ``deadband``, not sticking; the other loops as drawn;
+* ``ramps``: a plant whose loads ramp and turn (batch feeds, a level drawn down and
+  refilled): 24 of the good loops under a triangle or sawtooth load, which OP and PV alone
+  cannot tell from a sticky valve (the corpus holds such loops as a cause of their own).
 
 Each site mixes 24 sticky valves with 16 loops tuned too tight, 8 under a periodic load,
 8 carrying a sticky loop's cycle from elsewhere, 8 under a ramping load and 8 quiet ones
@@ -39,12 +42,14 @@ from stiction.scenarios.draws import Draw, draw
 
 __all__ = ["MIX", "SITES", "AsymmetricValve", "site_records"]
 
-SITES = ("asymmetric", "slow", "both", "deadband")
+SITES = ("asymmetric", "slow", "both", "deadband", "ramps")
 MIX = (("stiction", 24), ("tuning", 16), ("disturbance", 8), ("propagated", 8),
        ("ramp-load", 8), ("noise", 8))
 DEADBAND_MIX = (("stiction", 24), ("deadband", 16), ("tuning", 8), ("disturbance", 8),
                 ("ramp-load", 8), ("noise", 8))
-SEEDS = {"asymmetric": 31, "slow": 32, "both": 33, "deadband": 34}
+RAMPS_MIX = (("stiction", 24), ("ramp-load", 24), ("tuning", 8), ("disturbance", 8),
+             ("noise", 8))
+SEEDS = {"asymmetric": 31, "slow": 32, "both": 33, "deadband": 34, "ramps": 35}
 SLOW = 8.0
 
 
@@ -86,7 +91,7 @@ def _asymmetric(draws: Sequence[Draw]) -> AsymmetricValve:
 
 
 def _mix(site: str) -> tuple[tuple[str, int], ...]:
-    return DEADBAND_MIX if site == "deadband" else MIX
+    return {"deadband": DEADBAND_MIX, "ramps": RAMPS_MIX}.get(site, MIX)
 
 
 def _draws(site: str) -> list[Draw]:

@@ -33,7 +33,9 @@ The rule (:func:`fit_site`):
 5. held out, the site's fit must predict the findings better than the shipped one (log loss
    of each finding predicted by a fit without it: leave one out up to :data:`LOO_MAX`
    findings, :data:`FOLDS`-fold beyond), else the shipped calibration: "it reads this site
-   as well".
+   as well"; and its held-out calls (at the stiction threshold) must be no less precise on
+   the findings than the shipped ones, else the shipped calibration: a calibration that
+   reads the findings better on the whole but calls worse is not put in force.
 
 It is pure: arrays in, a :class:`SiteCalibration` out. :func:`recalibrate` applies one to an
 assessment: the confidence becomes the site's, a ``stiction`` call the site reads under the
@@ -286,10 +288,25 @@ def fit_site(confidence: ArrayLike, sticky: ArrayLike, *, keys: Sequence[str] | 
                                f"(held-out log loss {site.log_loss:.3f} fitted, "
                                f"{ship.log_loss:.3f} shipped){said}", scale, offset,
                                site=site, shipped=ship, **base)
+    if _less_precise(site, ship):
+        return SiteCalibration(False, f"the fit's held-out calls are less precise than the "
+                               f"shipped ones on these findings ({site.hits} of {site.calls} "
+                               f"sticky against {ship.hits} of {ship.calls}){said}", scale,
+                               offset, site=site, shipped=ship, **base)
     return SiteCalibration(True, f"fitted on {n1} sticky and {n0} not sticky findings "
                            f"(held-out log loss {site.log_loss:.3f}, shipped "
                            f"{ship.log_loss:.3f}){said}", scale, offset, site=site,
                            shipped=ship, **base)
+
+
+def _less_precise(site: Scores, ship: Scores) -> bool:
+    """Whether the site's held-out calls are less precise than the shipped ones (no calls
+    where the shipped ones were all right counts as less: a site that loses its calls)."""
+    if ship.calls == 0:
+        return False
+    if site.calls == 0:
+        return ship.hits > 0
+    return site.hits * ship.calls < ship.hits * site.calls
 
 
 def _held_out(x: FloatArray, y: FloatArray, prior: float) -> FloatArray:

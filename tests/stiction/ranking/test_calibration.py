@@ -31,7 +31,7 @@ def test_too_few_findings_of_either_kind_keep_the_shipped_calibration() -> None:
     cal = fit_site(c, y)
     assert not cal.used and cal.why.startswith("too few findings: 4 sticky, 4 not sticky")
     assert cal.apply(0.9) == 0.9
-    assert fit_site(c, y, min_each=4).used
+    assert not fit_site(c, y, min_each=4).why.startswith("too few")  # fitted, then judged
 
 
 def test_findings_that_contradict_the_confidence_keep_the_shipped_calibration() -> None:
@@ -49,6 +49,19 @@ def test_a_valve_found_both_ways_on_one_day_is_left_out_and_named() -> None:
     assert cal.dropped == ("V0 2024-05-01",)
     assert (cal.sticky, cal.good) == (5, 6)
     assert "contradict another of their valve and day left out (V0 2024-05-01)" in cal.why
+
+
+def test_a_fit_that_calls_worse_on_the_findings_keeps_the_shipped_one() -> None:
+    # sticky valves at 0.99 and 0.91, a good one at 0.97, nine good ones at 0.6: the fit
+    # reads the findings better (log loss) but, held out, keeps the false call at 0.97 and
+    # drops the sticky ones at 0.91: 5 of 6 sticky against the shipped 10 of 11
+    c = np.r_[np.full(5, 0.99), np.full(5, 0.91), [0.97], np.full(9, 0.6)]
+    y = np.r_[np.ones(10), np.zeros(10)].astype(bool)
+    cal = fit_site(c, y)
+    assert cal.site is not None and cal.shipped is not None
+    assert cal.site.log_loss < cal.shipped.log_loss
+    assert (cal.site.hits, cal.site.calls, cal.shipped.hits, cal.shipped.calls) == (5, 6, 10, 11)
+    assert not cal.used and cal.why.startswith("the fit's held-out calls are less precise")
 
 
 def test_a_fit_that_reads_the_findings_no_better_keeps_the_shipped_one() -> None:
