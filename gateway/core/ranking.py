@@ -8,7 +8,7 @@ where the config gives the PV a ``range``, times the loop's ``priority``).
 (``ResultStore.set_ranks``: the outputs hear of the loops that moved). A loop whose device is
 down or whose samples are stale keeps the place its latest assessment gives it: the valve did
 not change because a link dropped. Ranking 2,000 loops takes a few milliseconds, once per
-analysis round.
+analysis round (the scores and the order in numpy).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from stiction.ranking import Suspect, rank
+from stiction.ranking import Suspect, rank_arrays
 
 from ..config.model import LoopConfig
 from .store import LoopResult, ResultStore
@@ -62,10 +62,23 @@ def rerank(store: ResultStore) -> None:
     """Rank the store's loops that have an assessment and publish each one's place and
     suspicion (a loop without one: place 0, suspicion NaN)."""
     n = len(store.loops)
+    rows = [i for i in range(n) if store.results[i] is not None]
+    verdicts, conf, swing = [], np.full(len(rows), np.nan), np.full(len(rows), np.nan)
+    for k, i in enumerate(rows):
+        res = store.results[i]
+        assert res is not None
+        verdicts.append(str(res.assessment.verdict))
+        if res.assessment.confidence is not None:
+            conf[k] = res.assessment.confidence
+        if res.pv_swing is not None:
+            swing[k] = res.pv_swing
+    idx = np.array(rows, dtype=np.intp)
+    span = store.pv_span[idx]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        amplitude = np.where(span > 0, 100.0 * swing / span, np.nan)
+    places_of, scores_of, _tiers, _weights = rank_arrays(verdicts, conf, amplitude,
+                                                         store.priority[idx])
     places = np.zeros(n, dtype=np.int64)
     scores = np.full(n, np.nan)
-    for r in rank(suspects(store)):
-        i = store.index[r.name]
-        places[i] = r.rank
-        scores[i] = r.score
+    places[idx], scores[idx] = places_of, scores_of
     store.set_ranks(places, scores)

@@ -20,11 +20,13 @@ from .suspicion import (
     Suspect,
     amplitude_weight,
     rank,
+    rank_arrays,
     suspicion,
     swing,
     verdict_order,
 )
 
 __all__ = ["AMPLITUDE_REF", "JUDGED", "MIN_EACH", "Ranked", "Scores", "SiteCalibration",
-           "Suspect", "amplitude_weight", "fit_site", "platt_fit", "rank", "recalibrate",
+           "Suspect", "amplitude_weight", "fit_site", "platt_fit", "rank", "rank_arrays",
+           "recalibrate",
            "shipped", "suspicion", "swing", "verdict_order"]
