@@ -21,6 +21,7 @@ pass as the analysis made them.
 
 from __future__ import annotations
 
+import array
 import bisect
 import dataclasses
 import datetime as dt
@@ -65,8 +66,11 @@ def state_of(cal: SiteCalibration, enabled: bool) -> str:
 
 @dataclasses.dataclass
 class _Loop:
-    days: list[int] = dataclasses.field(default_factory=list)
-    conf: list[float] = dataclasses.field(default_factory=list)
+    """A loop's days (ordinals) and their confidences, as typed arrays: 12 bytes a day, so
+    2,000 loops' full retention takes 10 MB, not the 50 of lists of Python numbers."""
+
+    days: array.array[int] = dataclasses.field(default_factory=lambda: array.array("i"))
+    conf: array.array[float] = dataclasses.field(default_factory=lambda: array.array("d"))
     t: float = float("-inf")
     latest: float = math.nan
 
@@ -121,9 +125,10 @@ class ConfidenceHistory:
         for loop, e in data.items():
             if loop in self.loops and self.loops[loop].t >= e["t"]:
                 continue
-            self.loops[loop] = _Loop([dt.date.fromisoformat(d).toordinal() for d in e["days"]],
-                                     [float(c) for c in e["conf"]], float(e["t"]),
-                                     float(e["latest"]))
+            self.loops[loop] = _Loop(
+                array.array("i", [dt.date.fromisoformat(d).toordinal() for d in e["days"]]),
+                array.array("d", [float(c) for c in e["conf"]]), float(e["t"]),
+                float(e["latest"]))
         self.version += 1
 
 
