@@ -29,7 +29,7 @@ from .loop import LoopOptions, analyze_file
 from .manifest import COLUMNS, Loop, read_manifest
 from .plot import plot_analysis
 
-__all__ = ["COLUMNS", "Row", "flatten", "run", "table", "write_csv"]
+__all__ = ["COLUMNS", "Row", "flatten", "run", "spreadsheet_text", "table", "write_csv"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,17 +221,33 @@ def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
+FORMULA_FIRST = ("=", "+", "-", "@", "\t", "\r")
+"""A cell whose text starts with one of these a spreadsheet may evaluate as a formula (OWASP,
+"CSV injection"); written after an apostrophe, as text, unless it is a plain number."""
+_PLAIN_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def spreadsheet_text(text: str) -> str:
+    """``text`` as a spreadsheet shows it without evaluating it: one that starts like a
+    formula (:data:`FORMULA_FIRST`) gets a leading apostrophe, the mark of a text cell; a
+    plain number (``-0.25``, ``+3``, ``-1e-05``) stays a number."""
+    if text[:1] in FORMULA_FIRST and _PLAIN_NUMBER.fullmatch(text) is None:
+        return "'" + text
+    return text
+
+
 def _cell(value: Any) -> str:
     if value is None:
         return ""
     if isinstance(value, bool):
         return "true" if value else "false"
-    return repr(value) if isinstance(value, float) else str(value)
+    return spreadsheet_text(repr(value) if isinstance(value, float) else str(value))
 
 
 def write_csv(path: Path, rows: Sequence[Row]) -> None:
     """The rows flattened (:func:`flatten`) to ``path``: UTF-8 with a byte-order mark, as a
-    spreadsheet reads it; floats written in full (``repr``), null and absent keys empty."""
+    spreadsheet reads it; floats written in full (``repr``), null and absent keys empty,
+    a text that a spreadsheet would evaluate written as text (:func:`spreadsheet_text`)."""
     flat = [flatten(r.to_dict()) for r in rows]
     columns = list(FIRST)
     for f in flat:
@@ -239,7 +255,7 @@ def write_csv(path: Path, rows: Sequence[Row]) -> None:
     try:
         with path.open("w", newline="", encoding="utf-8-sig") as fh:
             w = csv.writer(fh)
-            w.writerow(columns)
+            w.writerow([spreadsheet_text(c) for c in columns])
             w.writerows([_cell(f.get(c)) for c in columns] for f in flat)
     except OSError as exc:
         raise UsageError(f"--csv {path}: cannot write: {exc.strerror or exc}") from exc

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import math
 from pathlib import Path
 from typing import Any
@@ -42,14 +43,18 @@ class Loop:
 
 def read_manifest(path: Path, base: LoopOptions) -> list[Loop]:
     """The loops ``path`` lists, each with ``base`` under its own cells."""
-    lines = read_text(path, named=" (--manifest)")[0].splitlines()
-    numbered = [(i + 1, line) for i, line in enumerate(lines) if line.strip()]
-    if not numbered:
+    text = read_text(path, named=" (--manifest)")[0]
+    first = next((line for line in text.splitlines() if line.strip()), None)
+    if first is None:
         raise UsageError(f"{path}: empty manifest (need a header row naming the column 'file')")
-    first = numbered[0][1]
     delimiter = max((",", ";", "\t"), key=first.count)
-    rows = [(n, row) for (n, _), row in zip(
-        numbered, csv.reader([line for _, line in numbered], delimiter=delimiter), strict=True)]
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
+    rows = []  # (line, cells): a quoted cell may hold a line break
+    line = 1
+    for row in reader:
+        if any(c.strip() for c in row):
+            rows.append((line, row))
+        line = reader.line_num + 1
     head_line, header = rows[0]
     names = [h.strip().casefold() for h in header]
     for name in names:
