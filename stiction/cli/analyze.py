@@ -114,6 +114,7 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
 def _print(a: Assessment, shown: dict[str, Any]) -> None:
     print(f"verdict: {a.verdict}")
     print(f"reason:  {a.reason}")
+    print(f"means:   {a.verdict.advice}")
     for key, val in shown.items():
         if key not in {"verdict", "reason", "warnings", "evidence", "size", "weighed",
                        "stretch"} and val is not None:

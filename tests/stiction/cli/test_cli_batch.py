@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from detector_fixtures import write_loop_csv
 
+from stiction import Verdict
 from stiction.cli import main
 from stiction.cli.batch import Progress, flatten, short_reason
 from stiction.scenarios import scenario, simulate
@@ -137,6 +138,7 @@ def test_one_file_prints_what_it_printed(unit: Path, tmp_path: Path,
     assert code == 0
     assert out == ("verdict: bad_data\n"
                    "reason:  window too short: 10 samples, need at least 32\n"
+                   f"means:   {Verdict.BAD_DATA.advice}\n"
                    "  oscillating: False\n"
                    "  multi_jump: False\n")
     code, out, _ = _run(capsys, ["analyze", str(unit / "short.csv"), "--json"])
