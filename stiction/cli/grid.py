@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import UsageError
+from .cells import Cells
 from .decimals import is_number
 
 __all__ = ["JITTER", "OFF_GRID", "Stamps", "grid", "on_grid"]
@@ -25,16 +26,22 @@ class Stamps:
     wrote them with their line numbers, for messages."""
 
     seconds: np.ndarray
-    written: Sequence[str]
-    lines: Sequence[int]
+    written: Sequence[str] | Cells
+    lines: Sequence[int] | np.ndarray
     zone: dt.tzinfo | None = None
     """The zone to show date-times in; None when the column holds seconds."""
     notes: tuple[str, ...] = ()
     appended: tuple[int, ...] = ()
     """Lines where the header repeats (two exports appended)."""
+    naive: bool = False
+    """Date-times that name no zone, read as UTC without ``--tz``: maybe local times."""
+
+    def text(self, i: int) -> str:
+        """Row ``i``'s stamp as the file wrote it."""
+        return self.written[i].strip()
 
     def at(self, i: int) -> str:
-        return f"{self.written[i]!r} (line {self.lines[i]})"
+        return f"{self.text(i)!r} (line {self.lines[i]})"
 
 
 def on_grid(path: Path, name: str, t: np.ndarray | Stamps, op: np.ndarray, pv: np.ndarray
@@ -60,7 +67,7 @@ def grid(path: Path, name: str, t: np.ndarray | Stamps, series: Sequence[np.ndar
     steps = steps[steps > 0]
     if steps.size == 0:
         raise UsageError(f"{path}: column {name!r} holds one time only "
-                         f"({stamps.written[0]!r}); give --ts S")
+                         f"({stamps.text(0)!r}); give --ts S")
     ts = float(np.median(steps))
     k = np.round((t - t[0]) / ts).astype(np.int64)
     if k[-1] + 1 > 50 * t.size:
@@ -104,7 +111,7 @@ def _backwards(path: Path, name: str, stamps: Stamps, i: int) -> str:
         return (f"{head}, where the header repeats at line {joined[0]}: two exports appended "
                 "that overlap in time; remove the overlap, or export the whole stretch at once")
     hour = 3000 <= stamps.seconds[i] - stamps.seconds[i + 1] <= 3700
-    if stamps.zone is not None and hour and not is_number(stamps.written[i]):  # local times
+    if stamps.zone is not None and hour and not is_number(stamps.text(i)):  # local times
         return (f"{head}: an hour back, the end of summer time in local time stamps? Give "
                 "--tz with the historian's zone (e.g. --tz Europe/Berlin), or export in UTC "
                 "or with the zone")

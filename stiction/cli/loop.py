@@ -20,7 +20,7 @@ import numpy as np
 from .._assessment import Assessment, Verdict
 from ..diagnosis.analyze import Details, analyze_details
 from ..diagnosis.stretch import Stretch, regular_stretch
-from . import historian
+from . import decimals, historian
 from ._common import UsageError
 from .plot import Clock, window_clock
 
@@ -80,20 +80,29 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
     """Read ``path`` as ``o`` says (:mod:`.historian`) and analyse its window; unusable input
     raises :class:`~stiction.cli._common.UsageError` naming it, a bad option value
     :class:`~stiction.ParameterError`."""
-    table = historian.read_table(path, decimal=o.decimal, tz=o.tz)
     wanted = [(o.op, "--op"), (o.pv, "--pv")]
     if o.position is not None:
         wanted.append((o.position, "--position"))
-    sp_name = _sp_column(table, o)
+    sp_names: list[str] = []
+
+    def select(header: list[str]) -> list[int]:
+        sp_names.extend(n for n in [_sp_column(header, o)] if n is not None)
+        return historian.needed(header, path, wanted + [(n, "--sp") for n in sp_names],
+                                o.time, o.ts)
+
+    table = historian.read_table(path, decimal=o.decimal, tz=o.tz, select=select)
+    if not sp_names:  # a long export, turned wide: its columns are its tags
+        sp_names += [n for n in [_sp_column(table.header, o)] if n is not None]
+    sp_name = sp_names[0] if sp_names else None
     if sp_name is not None:
         wanted.append((sp_name, "--sp"))
-    got = historian.read_signals(table, wanted, o.time, o.ts)
+    got = historian.read_signals(table, wanted, o.time, o.ts, o.op_range)
     table = got.table  # oldest first
     op, pv = got.series[0], got.series[1]
     pos = got.series[2] if o.position is not None else None
     sp = got.series[-1] if sp_name is not None else None
     ts, t, t_col, notes = got.ts, got.stamps, got.t_col, got.notes
-    secs = np.arange(len(table.rows)) * ts if t is None else t.seconds
+    secs = np.arange(table.size) * ts if t is None else t.seconds
     clock = FileTime(table, t_col, secs, ts)
     first, op, pv = clock.cut(o, op, pv)
     if pos is not None:
@@ -116,15 +125,15 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
     return Analysed(shown, a, d, ts, o.op_range, shown_from)
 
 
-def _sp_column(table: historian.Table, o: LoopOptions) -> str | None:
+def _sp_column(header: list[str], o: LoopOptions) -> str | None:
     """The setpoint column to read: ``--sp``'s, else the first of :data:`SP_COLUMNS` the
     header has (any case), unless ``--no-sp``; None: no setpoint."""
     if o.no_sp:
         return None
     if o.sp is not None:
         return o.sp
-    folded = [h.casefold() for h in table.header]
-    return next((table.header[folded.index(n)] for n in SP_COLUMNS if n in folded), None)
+    folded = [h.casefold() for h in header]
+    return next((header[folded.index(n)] for n in SP_COLUMNS if n in folded), None)
 
 
 def bursts(d: Details) -> Stretch | None:
@@ -164,9 +173,11 @@ class FileTime:
             except ValueError:
                 raise UsageError(f"{option} {text!r}: with --ts give seconds from the first "
                                  "row") from None
-        row = [""] * len(self.table.header)
-        row[self.col] = text
-        one = dataclasses.replace(self.table, rows=[row], lines=[0])
+        evidence: dict[str, int] = {}
+        decimals.tally_text(text, 0, evidence)
+        one = dataclasses.replace(self.table, columns={self.col: historian.Cells.of([text])},
+                                  lines=np.zeros(1, dtype=np.int64),
+                                  evidence={self.col: evidence}, memo={})
         try:
             return float(historian.times(one, self.col).seconds[0])
         except UsageError:
@@ -193,7 +204,7 @@ class FileTime:
         if self.col is None:
             return f"{at:g}"
         i = int(np.argmin(np.abs(self.t - at)))
-        return self.table.rows[i][self.col].strip()
+        return self.table.cell(i, self.col)
 
     def stretch(self, st: Stretch, first: int) -> dict[str, Any]:
         """The stretch in the file's time (``first``: the window's first sample)."""
