@@ -14,7 +14,7 @@ from ._common import UsageError
 from .cells import Cells
 from .decimals import is_number
 
-__all__ = ["JITTER", "OFF_GRID", "Stamps", "grid", "on_grid"]
+__all__ = ["JITTER", "OFF_GRID", "SKIPPED_HOUR", "Stamps", "grid", "on_grid", "spring_forward"]
 
 JITTER = 0.25  # a time stamp further than this share of the sample time off the grid is off it
 OFF_GRID = 0.01  # share of rows that may be off the grid before the stamps are refused
@@ -87,6 +87,7 @@ def grid(path: Path, name: str, t: np.ndarray | Stamps, series: Sequence[np.ndar
         g = np.full(int(k[-1]) + 1, np.nan)
         g[k] = x  # a repeated index keeps the last row
         out.append(g)
+    skipped = spring_forward(stamps, ts)
     repeated = t.size - np.unique(k).size
     missing = int(k[-1]) + 1 - np.unique(k).size
     notes = list(stamps.notes)
@@ -98,7 +99,31 @@ def grid(path: Path, name: str, t: np.ndarray | Stamps, series: Sequence[np.ndar
                      "of each kept")
     if missing:
         notes.append(f"{missing} samples missing from the {ts:g} s time grid: treated as gaps")
-    return ts, out, notes
+    return ts, out, notes + ([skipped] if skipped else [])
+
+
+SKIPPED_HOUR = "the time stamps skip an hour"
+"""How :func:`spring_forward`'s note begins."""
+
+
+def spring_forward(stamps: Stamps, ts: float) -> str | None:
+    """The note for date-times that name no zone and skip exactly an hour, from a whole
+    hour between midnight and 03:00 (the start of summer time in local stamps: read as UTC
+    without ``--tz``, the hour is a gap of that length), or None."""
+    if not stamps.naive or stamps.seconds.size < 2:
+        return None
+    t = stamps.seconds
+    step = np.diff(t)
+    late = np.abs(step - ts - 3600.0) <= max(JITTER * ts, 1.0)
+    gone = (t[:-1] + ts) % 86_400.0  # the wall clock of the first stamp missing
+    at_hour = np.abs((gone + ts / 2) % 3600.0 - ts / 2) <= max(JITTER * ts, 1.0)
+    hits = np.flatnonzero(late & at_hour & (gone < 3 * 3600.0 + ts))
+    if hits.size == 0:
+        return None
+    i = int(hits[0])
+    return (f"{SKIPPED_HOUR} from {stamps.at(i)} to {stamps.at(i + 1)}: the start of summer "
+            "time in local time stamps? Give --tz with the historian's zone (e.g. --tz "
+            "Europe/Berlin): the hour is then no gap")
 
 
 def _backwards(path: Path, name: str, stamps: Stamps, i: int) -> str:

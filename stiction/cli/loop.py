@@ -22,6 +22,7 @@ from ..diagnosis.analyze import Details, analyze_details
 from ..diagnosis.stretch import Stretch, regular_stretch
 from . import decimals, historian
 from ._common import UsageError
+from .grid import SKIPPED_HOUR
 from .plot import Clock, window_clock
 
 __all__ = ["SP_COLUMNS", "Analysed", "FileTime", "LoopOptions", "analyze_file", "bursts",
@@ -118,6 +119,10 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
                            shown_from.zone)
     shown_from = dataclasses.replace(shown_from, start=shown_from.start + first * ts)
     a = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
+    skipped = next((n for n in notes if n.startswith(SKIPPED_HOUR)), None)
+    if skipped is not None and a.verdict == Verdict.BAD_DATA:  # the gap is the clock's
+        a = dataclasses.replace(a, reason=f"{a.reason} ({skipped.split(': ')[0]}: local time "
+                                "without --tz? See the warning)")
     stretch = bursts(d)
     if stretch is not None:
         a = dataclasses.replace(a, reason=a.reason + stretch.reason(ts))

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..diagnosis.analyze import PROCESSES
+from . import decimals, stamps
 from ._common import UsageError
 from .loop import LoopOptions
 from .table import read_text
@@ -26,7 +27,7 @@ from .table import read_text
 __all__ = ["COLUMNS", "Loop", "read_manifest"]
 
 COLUMNS = ("file", "ts", "process", "op_lo", "op_hi", "kp", "delay", "op", "pv", "position",
-           "time", "sp")
+           "time", "sp", "tz", "decimal")
 """The columns a manifest may have (any case, any order); ``file`` is required."""
 
 
@@ -101,6 +102,15 @@ def _changes(cells: dict[str, str]) -> dict[str, Any]:
         got["kp"] = _number(cells, "kp", lambda v: v != 0, "not 0")
     if "delay" in cells:
         got["delay"] = _number(cells, "delay", lambda v: v >= 0, ">= 0")
+    if "tz" in cells:
+        try:
+            got["tz"] = stamps.parse_tz(cells["tz"])
+        except ValueError as exc:
+            raise ValueError(f"column 'tz': {exc}") from None
+    if "decimal" in cells:
+        if cells["decimal"] not in (decimals.POINT, decimals.COMMA):
+            raise ValueError(f"column 'decimal': {cells['decimal']!r} is not '.' or ','")
+        got["decimal"] = cells["decimal"]
     if "process" in cells:
         process = cells["process"].casefold()
         if process not in PROCESSES:
