@@ -60,15 +60,17 @@ def grid(path: Path, name: str, t: np.ndarray | Stamps, series: Sequence[np.ndar
     stamps = t if isinstance(t, Stamps) else Stamps(
         t, [f"{x:g}" for x in t], list(range(2, t.size + 2)))
     t = stamps.seconds
-    back = np.flatnonzero(np.diff(t) < 0)
+    steps = np.diff(t)
+    back = np.flatnonzero(steps < 0)
     if back.size:
         raise UsageError(_backwards(path, name, stamps, int(back[0])))
-    steps = np.diff(t)
     steps = steps[steps > 0]
     if steps.size == 0:
         raise UsageError(f"{path}: column {name!r} holds one time only "
                          f"({stamps.text(0)!r}); give --ts S")
     ts = float(np.median(steps))
+    shortest, longest = float(steps.min()), float(steps.max())
+    del steps
     k = np.round((t - t[0]) / ts).astype(np.int64)
     if k[-1] + 1 > 50 * t.size:
         raise UsageError(f"{path}: time stamps too irregular to put on a grid of {ts:g} s")
@@ -79,7 +81,7 @@ def grid(path: Path, name: str, t: np.ndarray | Stamps, series: Sequence[np.ndar
         raise UsageError(
             f"{path}: time stamps irregular: {n_off} of {t.size} rows more than a quarter of "
             f"the {ts:g} s sample time off its grid (the first {stamps.at(first)}; steps "
-            f"{steps.min():g} to {steps.max():g} s): the historian exported recorded "
+            f"{shortest:g} to {longest:g} s): the historian exported recorded "
             "(compressed) values; export interpolated values at a fixed interval, or give "
             "--ts S if the rows are equally spaced")
     out = []
@@ -87,9 +89,9 @@ def grid(path: Path, name: str, t: np.ndarray | Stamps, series: Sequence[np.ndar
         g = np.full(int(k[-1]) + 1, np.nan)
         g[k] = x  # a repeated index keeps the last row
         out.append(g)
-    skipped = spring_forward(stamps, ts)
-    repeated = t.size - np.unique(k).size
-    missing = int(k[-1]) + 1 - np.unique(k).size
+    distinct = 1 + int(np.count_nonzero(np.diff(k)))  # k never goes back (refused above)
+    repeated = t.size - distinct
+    missing = int(k[-1]) + 1 - distinct
     notes = list(stamps.notes)
     if float(off.max()) > 0.02 * ts:
         notes.append(f"time stamps jitter up to {float(off.max()):.3g} s around the {ts:g} s "
@@ -99,6 +101,8 @@ def grid(path: Path, name: str, t: np.ndarray | Stamps, series: Sequence[np.ndar
                      "of each kept")
     if missing:
         notes.append(f"{missing} samples missing from the {ts:g} s time grid: treated as gaps")
+    del k, off
+    skipped = spring_forward(stamps, ts)
     return ts, out, notes + ([skipped] if skipped else [])
 
 
@@ -113,11 +117,11 @@ def spring_forward(stamps: Stamps, ts: float) -> str | None:
     if not stamps.naive or stamps.seconds.size < 2:
         return None
     t = stamps.seconds
-    step = np.diff(t)
-    late = np.abs(step - ts - 3600.0) <= max(JITTER * ts, 1.0)
-    gone = (t[:-1] + ts) % 86_400.0  # the wall clock of the first stamp missing
-    at_hour = np.abs((gone + ts / 2) % 3600.0 - ts / 2) <= max(JITTER * ts, 1.0)
-    hits = np.flatnonzero(late & at_hour & (gone < 3 * 3600.0 + ts))
+    tol = max(JITTER * ts, 1.0)
+    hits = np.flatnonzero(np.abs(np.diff(t) - (ts + 3600.0)) <= tol)  # an hour missing
+    gone = (t[hits] + ts) % 86_400.0  # the wall clock of the first stamp missing
+    at_hour = np.abs((gone + ts / 2) % 3600.0 - ts / 2) <= tol
+    hits = hits[at_hour & (gone < 3 * 3600.0 + ts)]
     if hits.size == 0:
         return None
     i = int(hits[0])
