@@ -140,13 +140,18 @@ def main() -> None:
         path = historian_export(HERE / f"fic101-{seconds}.csv", seconds)
         size = path.stat().st_size
         argv = ["analyze", str(path), "--op", "FIC101.OP", "--pv", "FIC101.PV"]
-        print(f"\nstiction analyze of one export: {size / 1e6:.0f} MB, {seconds:,} rows")
-        print(f"{'':8} {'seconds':>18} {'peak RSS MB':>12} {'x file':>7}  verdict")
+        print(f"\nstiction analyze of one export: {size / 1e6:.0f} MB, {seconds:,} rows; peak "
+              "RSS, and above the interpreter with the packages imported (reading and "
+              "analysis), also per row")
+        print(f"{'':8} {'seconds':>18} {'peak RSS MB':>12} {'above MB':>9} {'x file':>7} "
+              f"{'B/row':>6}  verdict")
         for label, tree in (("before", old), ("after", repo)):
+            base = run(tree, ["reproduce", "--help"])  # every package imported, no data
             r = run(tree, argv)
             rss = float(r["rss"])  # type: ignore[arg-type]
-            print(f"{label:8} {_seconds(r):>18} {rss / 1e6:>12.0f} {rss / size:>7.1f}  "
-                  f"{r['said']}", flush=True)
+            above = rss - float(base["rss"])  # type: ignore[arg-type]
+            print(f"{label:8} {_seconds(r):>18} {rss / 1e6:>12.0f} {above / 1e6:>9.0f} "
+                  f"{above / size:>7.1f} {above / seconds:>6.0f}  {r['said']}", flush=True)
 
 
 if __name__ == "__main__":

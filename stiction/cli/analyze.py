@@ -33,9 +33,11 @@ def add_analyze(sub: Subparsers) -> None:
         "as a process historian exports it, and prints the assessment: ',' ';' or tab "
         "separated, decimal commas, column names in any case, times in seconds or as "
         "date-times (ISO 8601 and common forms). Empty, 'nan' and text cells ('I/O "
-        "Timeout', 'Shutdown') in OP or PV are missing samples (gaps), counted. Several "
-        "files, or --manifest: one row per loop (a file that cannot be read is listed with "
-        "its error, the others analysed; exit 0 if any loop was analysed).",
+        "Timeout', 'Shutdown') in OP or PV are missing samples (gaps), counted, and so are "
+        "samples a quality column (Quality, Confidence) marks bad; a long export "
+        "(DateTime,TagName,Value) is read one column per tag. Several files, or --manifest: "
+        "one row per loop (a file that cannot be read is listed with its error, the others "
+        "analysed; exit 0 if any loop was analysed); --every: one row per window.",
     )
     p.add_argument("files", type=Path, nargs="*", metavar="FILE",
                    help="CSV file with a header row; several: one row per loop")
