@@ -47,14 +47,21 @@ __all__ = ["DATE_COLUMNS", "OP_RANGE", "TIME_COLUMNS", "Cells", "Stamps", "Table
 def read_table(path: Path, *, decimal: str | None = None, tz: dt.tzinfo | None = None,
                select: Select | None = None) -> Table:
     """:func:`.table.read_table`, and a long export turned wide (:func:`.narrow.pivot`,
-    every tag's column kept)."""
+    every tag's column kept): one whose header is a long export's (:func:`.narrow.is_long`)
+    and does not hold the columns asked for."""
     long = []
 
     def pick(header: list[str]) -> Iterable[int]:
-        if narrow.is_long(header):
-            long.append(True)
-            return range(len(header))
-        return range(len(header)) if select is None else select(header)
+        try:
+            if select is not None:
+                return select(header)
+            if not narrow.is_long(header):
+                return range(len(header))
+        except UsageError:
+            if not narrow.is_long(header):
+                raise
+        long.append(True)
+        return range(len(header))
 
     table = _read_table(path, decimal=decimal, tz=tz, select=pick)
     return narrow.pivot(table) if long else table
