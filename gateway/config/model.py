@@ -75,6 +75,9 @@ class ResultServerSettings:
     # what read device identification (FC 43/14) answers: (object name, text) pairs of
     # gateway.wire.registers.IDENTIFICATION_OBJECTS; empty: FC 43 is refused
     identification: tuple[tuple[str, str], ...] = ()
+    # registers per loop: 20 (the block every SCADA map made before reads) or 32 (the
+    # extended block: +20.. what was added since, gateway.wire.results.EXTENSION)
+    block_registers: int = 20
 
 
 @dataclasses.dataclass(frozen=True)

@@ -29,7 +29,11 @@ docs/configuration.md):
 - **Warming up after a judgement** (the window restarted after an outage, or the gateway
   after a restart, and holds too little to judge: ``gateway/core/jobs.py``): the judgement
   is kept, its reason saying it is held, since when and what the loop waits for, until the
-  loop is judged again (issue 31).
+  loop is judged again (issue 31), but not longer than the loop's window after the round
+  that judged it (``max_hold_s``; issue 35 item 5: restarts faster than a window fills kept
+  a verdict for ever, each restart's first round saying it was judged then). The round
+  that judged it survives restarts (the state file keeps it) and is published with the
+  result (:meth:`VerdictFilter.published`: a register of the extended block, a metric).
 - Everything else is published at once: a loop's first verdict, ``warming_up`` before any
   judgement, ``bad_data`` (a data fault is said at once, and so is its end: the first
   judgement after it).
@@ -37,7 +41,8 @@ docs/configuration.md):
 ``rounds: 1`` turns the hysteresis off. Counted (:attr:`VerdictFilter.counts`, the metric
 ``stiction_verdict_changes_total{outcome}``): changes published (``published``) and rounds in
 which a change was held back, warming up included (``held_back``). The time of a held result
-is its round's, as every result's: the age of the latest assessment stays the analysis's.
+is its round's, as every result's: the age of the latest assessment stays the analysis's;
+the age of the judgement it shows is :meth:`VerdictFilter.published`'s.
 """
 
 from __future__ import annotations
@@ -52,7 +57,8 @@ from stiction.diagnosis.travel import BY_TRAVEL
 
 from ..config.model import HysteresisSettings
 
-__all__ = ["FILTERED", "OUTCOMES", "VerdictFilter", "by_travel"]
+__all__ = ["FILTERED", "HELD_BACK", "HELD_WARMING", "NOT_HELD", "OUTCOMES", "VerdictFilter",
+           "by_travel"]
 
 FILTERED = frozenset({Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED,
                       Verdict.NOT_OSCILLATING, Verdict.VALVE_NOT_RESPONDING})
@@ -65,12 +71,19 @@ HELD, HELD_END = "held", ". "
 """How a held result's reason begins, and the end of that head (no head holds ". ")."""
 
 
+NOT_HELD, HELD_BACK, HELD_WARMING = 0, 1, 2
+"""How a published result came to be (register +22 of the extended block, the metric
+``stiction_loop_verdict_hold``): this round's judgement; a judgement held back while a new
+one waits for its rounds; a judgement held through warming up."""
+
+
 @dataclasses.dataclass
 class _Loop:
     judged: Assessment  # the published judgement, as analysed
     at: float  # the round that last judged so (wall Unix seconds)
     away: int = 0  # rounds in a row whose verdict differed from it
     held_since: float | None = None  # the first warming-up round it was held through
+    hold: int = NOT_HELD  # what the last round published
 
 
 class VerdictFilter:
@@ -90,16 +103,28 @@ class VerdictFilter:
             self.on_count(outcome)
 
     def publish(self, loop: str, new: Assessment, t: float, *,
-                shown: Assessment | None = None) -> Assessment:
+                shown: Assessment | None = None, shown_at: float | None = None,
+                max_hold_s: float | None = None) -> Assessment:
         """What to publish for ``loop`` this round, given its analysis ``new`` (at wall
         time ``t``); ``shown``: what the loop shows now where this filter has not seen it
-        yet (a result restored from the state file or kept over a reload)."""
+        yet (a result restored from the state file or kept over a reload), judged at
+        ``shown_at`` (default ``t``); ``max_hold_s``: the longest a judgement is held
+        through warming up, counted from the round that judged it (the loop's window:
+        after that no sample it was judged on is left), after which ``new`` is published.
+        :meth:`published` says when what it returns was judged, and whether it is held."""
         state = self._loops.get(loop)
         if state is None and shown is not None and shown.verdict in FILTERED:
-            state = self._loops[loop] = _Loop(_unheld(shown), t)
+            state = self._loops[loop] = _Loop(_unheld(shown), t if shown_at is None
+                                              else shown_at)
         if new.verdict not in FILTERED:
             if new.verdict == Verdict.WARMING_UP and state is not None:
-                return self._hold_warming(state, new, t)
+                if max_hold_s is None or t - state.at <= max_hold_s:
+                    return self._hold_warming(state, new, t)
+                self._loops.pop(loop)  # held too long: its valve may have changed since
+                self._count("published")
+                return _prefixed(new, (
+                    f"no longer held: {state.judged.verdict} was judged {_clock(state.at)}, "
+                    f"longer ago than the loop's window ({max_hold_s:.0f} s)"))
             self._loops.pop(loop, None)  # nothing judged to keep
             return new
         near = self._near_threshold(new)
@@ -116,6 +141,7 @@ class VerdictFilter:
             self._count("published")
             return new
         self._count("held_back")
+        state.hold = HELD_BACK
         moves = (f" or its confidence moves {self.settings.margin:g} from "
                  f"{state.judged.confidence:.2f}" if state.judged.confidence is not None and
                  new.confidence is not None and
@@ -150,8 +176,16 @@ class VerdictFilter:
                 by_travel(old) == by_travel(new) and
                 abs(new.confidence - old.confidence) >= self.settings.margin)
 
+    def published(self, loop: str, t: float) -> tuple[float, int]:
+        """``(judged, hold)`` of what :meth:`publish` returned for ``loop`` at ``t``: the
+        wall time of the round that judged its verdict (``t``: this one) and
+        :data:`NOT_HELD`, :data:`HELD_BACK` or :data:`HELD_WARMING`."""
+        state = self._loops.get(loop)
+        return (t, NOT_HELD) if state is None else (state.at, state.hold)
+
     def _hold_warming(self, state: _Loop, new: Assessment, t: float) -> Assessment:
         state.away = 0
+        state.hold = HELD_WARMING
         if state.held_since is None:
             state.held_since = t
         self._count("held_back")
