@@ -84,11 +84,12 @@ def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, 
     table = historian.read_table(args.file, decimal=args.decimal, tz=args.tz)
     t_col = historian.time_choice(table, args.time, args.ts)
     t = None
-    if t_col is not None and len(table.rows) >= 2:
+    if t_col is not None and table.size >= 2:
         table, t = historian.oldest_first(table, t_col)
     notes = list(table.notes)
-    header = [h for i, h in enumerate(table.header) if i != t_col]
-    cols = [i for i in range(len(table.header)) if i != t_col]
+    skip = {t_col, *(i for i, h in enumerate(table.header) if historian.is_quality(h))}
+    header = [h for i, h in enumerate(table.header) if i not in skip]
+    cols = [i for i in range(len(table.header)) if i not in skip]
     loops, others = loop_columns(header)
     if not loops:
         raise UsageError(f"{args.file}: no loop found: name the columns TAG.OP and TAG.PV "
@@ -110,7 +111,8 @@ def _read(args: argparse.Namespace) -> tuple[float, dict[str, tuple[np.ndarray, 
     else:
         ts = float(args.ts)
     return (ts, {tag: (series[o], series[p]) for tag, (o, p) in loops.items()},
-            {name: series[j] for name, j in others.items() if j in series}, notes)
+            {name: series[j] for name, j in others.items() if j in series},
+            historian.summarised(notes))
 
 
 def _indicator(table: historian.Table, col: int) -> tuple[np.ndarray | None, str | None]:
