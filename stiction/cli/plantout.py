@@ -48,13 +48,15 @@ def _evidence(e: MemberEvidence) -> dict[str, Any]:
 def as_json(view: PlantAssessment, after: dict[str, Assessment], notes: list[str]
             ) -> dict[str, Any]:
     """``groups`` (each with ``loops``, ``indicators``, ``period_s``, ``source``,
-    ``named_by``, ``entry``, ``source_ranking`` with every evidence's figure) and ``loops``
+    ``named_by``, ``entry``, ``source_ranking`` with every evidence's figure, ``marginal``:
+    the signals that may carry its cycle but not clearly, with their share) and ``loops``
     (each with ``loop``, ``verdict``, ``confidence``, ``group``, ``role``, ``reason``)."""
     return {
         "groups": [{
             "group": g.number, "period_s": g.period_s, "unit": g.unit, "loops": list(g.loops),
             "indicators": [m.name for m in g.members if m.kind == "indicator"],
             "strength": {m.name: round(m.strength, 4) for m in g.members},
+            "marginal": {m.name: round(m.strength, 4) for m in g.marginal},
             "source": g.source, "also_sources": list(g.also_sources),
             "named_by": list(g.named_by), "entry": g.entry, "external": g.external,
             "reason": g.reason, "followers_called_stiction": dict(g.demoted),
@@ -87,6 +89,9 @@ def _group_text(g: Group) -> list[str]:
            "  loops: " + ", ".join(f"{m.name} {m.strength:.0%}" for m in loops)]
     if inds:
         out.append("  indicators: " + ", ".join(f"{m.name} {m.strength:.0%}" for m in inds))
+    if g.marginal:
+        out.append("  in the margin (may carry it, not clearly: no role): " + ", ".join(
+            f"{m.name} {m.strength:.0%}" for m in g.marginal))
     out.append("  (each member's share of its power in the cycle's band)")
     out.append("  source ranking:")
     rows = [RANKING_HEADER] + [(

@@ -78,6 +78,9 @@ class Group:
     demoted: Mapping[str, str] = dataclasses.field(default_factory=dict)
     indicators: tuple[IndicatorEvidence, ...] = ()
     unit: str = ""
+    marginal: tuple[Member, ...] = ()
+    """Signals that may carry the cycle but not clearly enough to be members
+    (:mod:`.groups`): listed, no role, their verdicts untouched."""
 
     @property
     def loops(self) -> tuple[str, ...]:
@@ -285,7 +288,8 @@ def _group(number: int, period_s: float, j: Judged, unit: str) -> Group:
                   f"candidate {top.loop}: {top.note()}): its source is not among the loops "
                   "read, or cannot be told from this data")
     return Group(number, period_s, members, j.ranking, d.source, reason, d.also, d.named_by,
-                 d.outside, dict(d.demoted), j.indicators, unit)
+                 d.outside, dict(d.demoted), j.indicators, unit,
+                 tuple(Member(nm, kind, s) for nm, kind, s in j.marginal))
 
 
 def _roles(names: list[str], groups: list[Group]) -> dict[str, LoopRole]:

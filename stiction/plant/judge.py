@@ -55,12 +55,13 @@ class Signals:
 @dataclasses.dataclass(frozen=True)
 class Judged:
     """What :func:`judge` found: members (name, kind, strength), the loops' ranking, the
-    indicators' evidence and the decision."""
+    indicators' evidence, the decision and the marginal signals (name, kind, strength)."""
 
     members: tuple[tuple[str, str, float], ...]
     ranking: tuple[MemberEvidence, ...]
     indicators: tuple[IndicatorEvidence, ...]
     decision: Decision
+    marginal: tuple[tuple[str, str, float], ...] = ()
 
 
 class _Links:
@@ -97,12 +98,19 @@ class _Links:
         return self.granger(a, b) - self.granger(b, a)
 
 
-def _members(g: RawGroup, sigs: Signals) -> tuple[list[tuple[str, str, float]], dict[str, int]]:
-    """(name, kind, strength) strongest first, and each member's strongest row."""
+def _members(g: RawGroup, sigs: Signals, marginal: bool = False
+             ) -> tuple[list[tuple[str, str, float]], dict[str, int]]:
+    """(name, kind, strength) strongest first, and each member's strongest row; of the
+    marginal signals with ``marginal`` (their owners that are no member)."""
     strength: dict[str, float] = {}
     row: dict[str, int] = {}
     kinds: dict[str, str] = {}
-    for i, share in zip(g.signals, g.shares, strict=True):
+    pairs = zip(g.marginal, g.marginal_shares, strict=True) if marginal else \
+        zip(g.signals, g.shares, strict=True)
+    members = {sigs.owner[i] for i in g.signals} if marginal else set()
+    for i, share in pairs:
+        if sigs.owner[i] in members:
+            continue
         nm = sigs.owner[i]
         if share > strength.get(nm, -1.0):
             strength[nm], row[nm] = share, i
@@ -193,4 +201,5 @@ def judge(g: RawGroup, sigs: Signals, *, assessments: Mapping[str, Assessment],
     decision = decide(ranking, indicators, links.flow, links.granger, cascades=cascades,
                       previous=previous if previous in row else None)
     ranking = _lags(ranking, decision.source or ranking[0].loop, sigs, row, g.period)
-    return Judged(tuple(members), tuple(ranking), tuple(indicators), decision)
+    return Judged(tuple(members), tuple(ranking), tuple(indicators), decision,
+                  tuple(_members(g, sigs, marginal=True)[0]))

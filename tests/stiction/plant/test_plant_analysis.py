@@ -38,7 +38,7 @@ def test_a_sticky_valve_and_its_followers_form_one_group_with_the_valve_as_sourc
     assert "TI205" in {m.name for m in g.members if m.kind == "indicator"}
     assert g.source == "FIC101" and g.ranking[0].loop == "FIC101"
     assert "direction" in g.named_by  # it leads TIC201 and LIC301 (Granger)
-    assert 140 < g.period_s < 180
+    assert 120 < g.period_s < 250  # 150-215 s over 40 realisations of the plant
     # its own window: at least undetermined with the valve evidence for (the named source)
     assert before["FIC101"].verdict in (Verdict.STICTION, Verdict.UNDETERMINED)
     assert view.roles["FIC101"].role == "source"
