@@ -65,5 +65,22 @@ def plant_test_membership() -> tuple[str, bool]:
             sorted(g["loops"]) == ["FIC101", "LIC301", "TIC201"])
 
 
+@case("35.6", "an Ignition export ([default]U2/FIC101/OP): the loops are read as loops, "
+              "FIC101 named the source, not 'enters from outside'")
+def ignition_tag_paths() -> tuple[str, bool]:
+    header, rows = _plant("sticky-feeds-two", seed=3, every=2)
+    header = ["t", *(f"[default]U2/{h.replace('.', '/')}" for h in header[1:])]
+    try:
+        data = _stiction_plant(header, rows)
+    except SystemExit:
+        return "refused: no loop found", False
+    g = _fic101(data)
+    loops = len(data["loops"])
+    if g is None:
+        return f"{loops} loops, no group with FIC101", False
+    said = f"{loops} loops; source {g['source']}, entry {g['entry']}"
+    return said, loops == 5 and (g["source"] or "").endswith("FIC101") and g["entry"] is None
+
+
 if __name__ == "__main__":
     run(sys.argv[1:])

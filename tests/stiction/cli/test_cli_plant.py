@@ -160,6 +160,13 @@ def test_simulate_writes_a_plant_export_that_plant_reads(
     (["FIC1.OP", "FIC1.PV", "TI9"], {"FIC1": (0, 1)}, {"TI9": 2}),
     (["fic1_op", "FIC1_PV", "fic1.sp"], {"fic1": (0, 1)}, {}),
     (["A.MV", "A.PV", "B.OUT", "B pv", "C.OP"], {"A": (0, 1), "B": (2, 3)}, {"C.OP": 4}),
+    # historians' tag paths (issue 35): Ignition's provider left out of the name, a colon,
+    # DeltaV's function block and .CV, a provider kept where two loops would be one
+    (["[default]U2/FIC101/OP", "[default]U2/FIC101/PV", "[default]U2/TI205"],
+     {"U2/FIC101": (0, 1)}, {"U2/TI205": 2}),
+    (["U2:FIC1:PV", "U2:FIC1:OP"], {"U2:FIC1": (1, 0)}, {}),
+    (["FIC1/PID1/OUT.CV", "FIC1/PID1/PV.CV", "FIC1/PID1/SP.CV"], {"FIC1/PID1": (0, 1)}, {}),
+    (["[a]X/OP", "[a]X/PV", "[b]X/OP", "[b]X/PV"], {"[a]X": (0, 1), "[b]X": (2, 3)}, {}),
 ])
 def test_loops_are_found_from_column_pairs(header: list[str], loops: dict[str, tuple[int, int]],
                                            indicators: dict[str, int]) -> None:
@@ -207,3 +214,37 @@ def test_an_export_newest_first_reads_as_in_time_order(
     assert newest_first == in_order
     assert in_order["groups"]  # a real answer: the sticky valve's group
 
+
+def test_an_ignition_export_reads_its_tag_paths_as_loops(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 35: columns named as Ignition exports them ([default]U2/FIC101/OP) were all
+    indicators; they are the loops they name, and the answer is the plain export's."""
+    rec = plant_records()["sticky-feeds-two"]
+    names = {f"{t}.{k}": f"[default]U2/{t}/{k}" for t in rec.op for k in ("OP", "PV")}
+    path = write_wide_export(tmp_path / "ignition.csv", rec, names=names)
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join([lines[0].replace(";TI205", ";[default]U2/TI205"),
+                               *lines[1:]]) + "\n")
+    assert main(["plant", str(path), "--integrating", "LIC301", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert main(["plant", str(_export(tmp_path)), "--integrating", "LIC301", "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert [x["loop"] for x in data["loops"]] == [f"U2/{x['loop']}" for x in plain["loops"]]
+    (g,) = [g for g in data["groups"] if "U2/FIC101" in g["loops"]]
+    (p,) = [g for g in plain["groups"] if "FIC101" in g["loops"]]
+    assert g["source"] == "U2/FIC101" and g["entry"] is None
+    assert g["loops"] == [f"U2/{x}" for x in p["loops"]] and g["indicators"] == ["U2/TI205"]
+    assert {x["loop"]: x["verdict"] for x in data["loops"]} == \
+        {f"U2/{x['loop']}": x["verdict"] for x in plain["loops"]}
+
+
+def test_a_column_named_like_a_loops_signal_without_its_partner_is_warned_of(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _export(tmp_path)
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join([lines[0] + ";[default]U2/FIC9/OP",
+                               *(ln + ";1,5" for ln in lines[1:])]) + "\n")
+    assert main(["plant", str(path), "--integrating", "LIC301", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert "column '[default]U2/FIC9/OP' is named like a loop's OP but the file has no PV " \
+           "column of '[default]U2/FIC9': read as an indicator" in data["warnings"]
