@@ -4,6 +4,7 @@ bench/.cache by the generators' and the analysis' source."""
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import inspect
 import os
@@ -16,15 +17,15 @@ import numpy as np
 import stiction
 from stiction import Assessment, analyze
 from stiction.scenarios import plant as plant_module
-from stiction.scenarios import plants as plants_module
 from stiction.scenarios.plant import PlantRecord, simulate_plants
 from stiction.scenarios.plants import plant_scenarios
 
-CACHE = Path(__file__).resolve().parent / ".cache"
-DURATION, SAMPLE = 14400.0, 4
-VIEWS = (4.0, 10.0, 20.0, 60.0)
-"""Sample times of the views, s: the gateway's (the simulation kept every 4 s) and a
-historian's interpolated exports at 10, 20 and 60 s."""
+CACHE = Path(os.environ.get("PLANTWIDE_CACHE", Path(__file__).resolve().parent / ".cache"))
+DURATION, SAMPLE = 14400.0, 1
+VIEWS = (1.0, 4.0, 20.0, 60.0)
+"""Sample times of the views, s: the simulation's own 1 s, the gateway's polling at 4 s and
+a historian's exports at 20 and 60 s (every 4th, 20th or 60th sample, as the plant
+simulator's exports are written: ``stiction simulate --plant --ts``)."""
 
 Analysed = list[tuple[PlantRecord, dict[str, Assessment]]]
 
@@ -50,23 +51,44 @@ def _pickled(path: Path, make: Any) -> Any:
 
 
 def _code_key() -> str:
-    """The per-loop analysis' code: stiction/ without the plant view and the CLI (a change
-    to the plant view analyses nothing again)."""
+    """The per-loop analysis' code: stiction/ without the plant view, the CLI and the
+    scenarios (a change to the plant view analyses nothing again; the plants simulated are
+    keyed by what was drawn, :func:`_plants_key`)."""
     root = Path(stiction.__file__).resolve().parent
     h = hashlib.sha256()
     for p in sorted(root.rglob("*.py")):
-        if not {"cli", "plant"} & set(p.relative_to(root).parts[:1]):
+        if not {"cli", "plant", "scenarios"} & set(p.relative_to(root).parts[:1]):
             h.update(p.read_bytes())
     return h.hexdigest()[:16]
 
 
-def simulated(kind: str, count: int, seed: int) -> Analysed:
-    """The plants of ``kind`` at the gateway's 4 s, each loop analysed (the records of
-    ``python -m bench plantwide`` before issue 29: same cache)."""
-    src = inspect.getsource(plant_module) + inspect.getsource(plants_module)
-    key = hashlib.sha256(f"{src}{kind}{count}{seed}{DURATION}{SAMPLE}".encode()).hexdigest()
+def _drawn(x: Any) -> str:
+    """``x`` (the scenarios drawn) as text, a dataclass's fields at their defaults left out
+    (a field added with a default that changes nothing keeps the key)."""
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        parts = [f"{f.name}={_drawn(getattr(x, f.name))}" for f in dataclasses.fields(x)
+                 if f.default is dataclasses.MISSING or getattr(x, f.name) != f.default]
+        return f"{type(x).__name__}({', '.join(parts)})"
+    if isinstance(x, (list, tuple)):
+        return "[" + ", ".join(_drawn(v) for v in x) + "]"
+    if isinstance(x, dict):
+        return "{" + ", ".join(f"{k!r}: {_drawn(v)}" for k, v in x.items()) + "}"
+    return repr(x)
 
-    def make() -> Analysed:  # (the analysis is not in the key: the cache of issue 21)
+
+def _plants_key(kind: str, count: int, seed: int) -> str:
+    """The plants drawn (their parameters) and the simulator's code: the same plants give
+    the same key in any tree (the baseline's too)."""
+    drawn = _drawn(plant_scenarios(kind, count, seed=seed))
+    src = inspect.getsource(plant_module)
+    return hashlib.sha256(f"{src}{drawn}{DURATION}{SAMPLE}{seed}".encode()).hexdigest()[:16]
+
+
+def simulated(kind: str, count: int, seed: int) -> Analysed:
+    """The plants of ``kind`` at the simulation's 1 s, each loop analysed."""
+    key = _plants_key(kind, count, seed) + _code_key()
+
+    def make() -> Analysed:
         scenarios = plant_scenarios(kind, count, seed=seed)
         out = []
         for i in range(0, len(scenarios), 10):
@@ -77,7 +99,7 @@ def simulated(kind: str, count: int, seed: int) -> Analysed:
                                   for n in rec.op}))
         return out
 
-    return list(_pickled(CACHE / f"plants-{kind}-{key[:16]}.pickle", make))
+    return list(_pickled(CACHE / f"plants-{kind}-{key}.pickle", make))
 
 
 def resampled(rec: PlantRecord, ts: float) -> PlantRecord:
@@ -99,8 +121,7 @@ def view(kind: str, count: int, seed: int, ts: float) -> Analysed:
     base = simulated(kind, count, seed)
     if ts == SAMPLE:
         return base
-    src = inspect.getsource(plant_module) + inspect.getsource(plants_module)
-    key = hashlib.sha256(f"{src}{_code_key()}{kind}{count}{seed}{ts}".encode()).hexdigest()
+    key = _plants_key(kind, count, seed) + _code_key()
 
     def make() -> Analysed:
         out = []
@@ -111,7 +132,7 @@ def view(kind: str, count: int, seed: int, ts: float) -> Analysed:
                             for n in r.op}))
         return out
 
-    return list(_pickled(CACHE / f"plants-{kind}-{ts:g}s-{key[:16]}.pickle", make))
+    return list(_pickled(CACHE / f"plants-{kind}-{ts:g}s-{key}.pickle", make))
 
 
 def tep_runs() -> list[tuple[Any, dict[str, Assessment]]]:
