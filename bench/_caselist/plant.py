@@ -82,5 +82,58 @@ def ignition_tag_paths() -> tuple[str, bool]:
     return said, loops == 5 and (g["source"] or "").endswith("FIC101") and g["entry"] is None
 
 
+@case("37.1", "the real record's evidence (a sticky level loop called stiction at 0.94, its "
+              "cycle's index 0.8; a flow indicator leading by +0.12, index 1.6): the loop "
+              "the source, still stiction; the group 'also fed from outside'")
+def real_record_evidence() -> tuple[str, bool]:
+    from stiction.plant.decide import IndicatorEvidence, decide  # noqa: PLC0415
+    from stiction.plant.source import MemberEvidence  # noqa: PLC0415
+
+    def loop(name: str, conf: float, flow: float, nli: float, *, gain: float = 0.0,
+             strength: float = 0.5) -> MemberEvidence:
+        verdict = "stiction" if conf >= 0.87 else "no_stiction"
+        return MemberEvidence(name, strength, gain, 0.0, 0, conf, 0.0, verdict, flow, nli)
+
+    ranking = [loop("LIC1", 0.94, 0.05, 0.8, gain=0.19, strength=0.8),
+               loop("FIC2", 0.3, -0.02, 0.5), loop("TIC3", 0.2, -0.03, 0.4)]
+    d = decide(ranking, [IndicatorEvidence("FI4", 0.7, flow=0.12, nli=1.6)],
+               lambda a, b: 0.0, lambda a, b: 0.0, cascades={})
+    up = getattr(d, "upstream", None)
+    said = f"source {d.source}, entry {d.outside}, upstream {up}, LIC1 " + \
+        ("propagated" if "LIC1" in d.demoted else "still stiction")
+    return said, d.source == "LIC1" and "LIC1" not in d.demoted
+
+
+@case("37.sfw", "sticky-feeds-two exported at 30 and 60 s, seeds 1-5 (`stiction simulate "
+                "--plant ... --ts N --duration 14400 --seed S`, `stiction plant "
+                "--integrating LIC301`): FIC101 the one source, TIC201 and LIC301 never "
+                "stiction, in 10 of 10")
+def sticky_feeds_two_at_historian_sampling() -> tuple[str, bool]:
+    from stiction.cli import main  # noqa: PLC0415
+
+    good, notes = 0, []
+    with tempfile.TemporaryDirectory() as tmp:
+        for ts in (30, 60):
+            for seed in range(1, 6):
+                path = Path(tmp) / f"p{ts}-{seed}.csv"
+                with contextlib.redirect_stdout(io.StringIO()):
+                    main(["simulate", "--plant", "sticky-feeds-two", "--ts", str(ts),
+                          "--duration", "14400", "--seed", str(seed), "-o", str(path)])
+                out = io.StringIO()
+                with contextlib.redirect_stdout(out):
+                    main(["plant", str(path), "--integrating", "LIC301", "--json"])
+                data = json.loads(out.getvalue())
+                g = _fic101(data)
+                loops = {x["loop"]: x for x in data["loops"]}
+                srcs = sorted(n for n, x in loops.items() if x["role"] == "source")
+                ok = g is not None and g["source"] == "FIC101" and srcs == ["FIC101"] and \
+                    all(loops[n]["verdict"] != "stiction" for n in ("TIC201", "LIC301"))
+                good += ok
+                if not ok:
+                    notes.append(f"{ts} s #{seed}: " + ("no group" if g is None else
+                                 f"sources {','.join(srcs) or '-'}"))
+    return f"{good} of 10" + (f" ({'; '.join(notes[:4])})" if notes else ""), good == 10
+
+
 if __name__ == "__main__":
     run(sys.argv[1:])

@@ -24,7 +24,7 @@ from .._assessment import Assessment, Verdict
 from .._validate import FloatArray
 from .decide import Decision, IndicatorEvidence, decide
 from .direction import cycle_band, cycle_bands, granger, phase_lag
-from .groups import BAND, RawGroup
+from .groups import BAND, RawGroup, coherence_at
 from .nonlinearity import nonlinearity
 from .source import MemberEvidence, harmonics, member_evidence, rank
 from .spectra import Spectra
@@ -96,6 +96,12 @@ class _Links:
 
     def flow(self, a: str, b: str) -> float:
         return self.granger(a, b) - self.granger(b, a)
+
+    def coherence(self, a: str, b: str) -> float:
+        """Coherence of ``b``'s cycle with ``a``'s at the group's frequency."""
+        rows = self.sigs.rows
+        return float(coherence_at(rows[self.row[b]][None, :], rows[self.row[a]],
+                                  1.0 / self.period)[0])
 
 
 def _members(g: RawGroup, sigs: Signals, marginal: bool = False
@@ -199,7 +205,8 @@ def judge(g: RawGroup, sigs: Signals, *, assessments: Mapping[str, Assessment],
     evidence, indicators = _measured(evidence, indicators, links, row=row, period=g.period)
     ranking = rank(evidence, dict(cascades))
     decision = decide(ranking, indicators, links.flow, links.granger, cascades=cascades,
-                      previous=previous if previous in row else None)
+                      previous=previous if previous in row else None,
+                      coherence=links.coherence, period=g.period)
     ranking = _lags(ranking, decision.source or ranking[0].loop, sigs, row, g.period)
     return Judged(tuple(members), tuple(ranking), tuple(indicators), decision,
                   tuple(_members(g, sigs, marginal=True)[0]))
