@@ -216,7 +216,7 @@ def report(totals: dict[str, Any]) -> None:
 def tep() -> None:
     """Issue 29's TEP lines: a sticking valve whose cycle reaches other loops (its loop is
     in a group) named the source; no follower called ``stiction``; without a sticking valve,
-    no loop named a valve source."""
+    no loop named a valve source, and a disturbance's groups without a loop source."""
     c: collections.Counter[str] = collections.Counter()
     for run_, before in tep_runs():
         pa = analyze_plant(dict(run_.loops), ts=run_.ts, indicators=run_.indicators,
@@ -247,6 +247,9 @@ def tep() -> None:
             c["valve source named"] += sum(
                 1 for g in pa.groups for n in (g.source, *g.also_sources)
                 if n is not None and after[n].verdict == Verdict.STICTION)
+            if run_.external:
+                c["external groups"] += len(pa.groups)
+                c["no loop source"] += sum(1 for g in pa.groups if g.source is None)
     if not c:
         print("== plant-wide: TEP runs: skipped (python -m lab corpus builds them) ==")
         return
@@ -258,6 +261,9 @@ def tep() -> None:
     print(f"  followers called stiction: {c['follower and stiction']} (target 0); other loops "
           f"called stiction, before -> after the plant view: {c['others called before']} -> "
           f"{c['others called after']} ({c['others called, in no group']} of them in no group)")
+    print(f"  runs with a disturbance from outside and no sticking valve: groups reported "
+          f"without a loop source {_pct(c['no loop source'], c['external groups'])} "
+          "(target >= 90 %)")
     print(f"  runs without a sticking valve: a loop named a valve source "
           f"{c['valve source named']} times (target 0); loops called stiction at "
           f"{CONFIDENT:g} or more turned propagated: {c['confident propagated']}, with no other "

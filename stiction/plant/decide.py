@@ -12,9 +12,11 @@ In this order:
    best ranked of them, one called at ``CONFIDENT`` or more first), unless named evidence
    says otherwise: a loop ranked above it leads its cycle (net flow at least
    ``FLOW_MARGIN``) and has its own evidence (a valve score of at least ``SOURCE_SCORE``,
-   or a cycle nonlinear and more so than the called loop's); then that loop is the source
-   and both reasons say why. A called loop whose cycle clearly trails another loop's
-   (pairwise net flow ``FLOW_NAME`` or more from it) is not named by its verdict alone.
+   a cycle nonlinear and more so than the called loop's, or half that valve score and
+   stronger evidence than the called loop's, :func:`.weigh.stronger`); then that loop is
+   the source and both reasons say why. A called loop whose cycle clearly trails another
+   loop's (pairwise net flow ``FLOW_NAME`` or more from it) is not named by its verdict
+   alone.
 2. **Its own valve.** Else the top candidate whose own valve evidence is enough
    (:attr:`.source.MemberEvidence.valve_named`), unless its cycle trails (net flow below 0,
    or below an indicator's).
@@ -54,8 +56,9 @@ In this order:
 A called outer loop of a declared cascade whose inner loop is a member speaks for the inner
 loop's valve (its "valve" is the inner loop): in 1 the inner loop takes its place, and the
 outer loop follows. Every other member whose own verdict is ``stiction`` (or whose valve
-names it) follows the source when the source leads it (Granger gain from the source at least
-``COUPLED`` and net flow from it positive) or its cycle is in step with the source's
+names it, or that leads the group with its own valve as in 3) follows the source when the
+source leads it (Granger gain from the source at least ``COUPLED`` and net flow from it
+positive) or its cycle is in step with the source's
 (coherence at least ``IN_STEP``: one cycle, carried); a loop whose own window says
 ``stiction`` at ``CONFIDENT`` or more follows only a source whose evidence is clearly
 stronger than its own (:func:`stronger`), and is overridden in 1 only by such a loop. Of
@@ -162,7 +165,8 @@ def _overrides(t: MemberEvidence, s: MemberEvidence, flow: Flow,
     """Does ``t`` take the source's place from called loop ``s`` (module doc, 1)?"""
     if cascades.get(t.loop) == s.loop or t.loop == s.loop:
         return False  # the outer loop of a cascade: its valve is s
-    own = t.valve >= SOURCE_SCORE or (nli_of(t) > NLI_NONLINEAR and nli_of(t) > nli_of(s))
+    own = t.valve >= SOURCE_SCORE or (nli_of(t) > NLI_NONLINEAR and nli_of(t) > nli_of(s)) \
+        or (t.valve >= SOURCE_SCORE / 2 and stronger(t, s, resolved))
     if (s.confidence or 0.0) >= CONFIDENT and not stronger(t, s, resolved):
         return False  # a confident call is overturned only by stronger evidence
     return own and flow(t.loop, s.loop) >= FLOW_MARGIN
@@ -297,7 +301,8 @@ def decide(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvid
     kept: dict[str, str] = {}
     also: list[str] = []
     for e in ranking:
-        if e is source or not (e.called or e.valve_named):
+        if e is source or not (e.called or e.valve_named or
+                               "own valve" in _leads(e, ranking, indicators)):
             continue
         if source is None:
             if e.called:

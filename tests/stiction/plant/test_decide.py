@@ -144,3 +144,36 @@ def test_an_indicator_leading_through_the_loops_own_sensor_lag_is_no_cause() -> 
     after = view.apply(called)
     assert after["FIC101"].verdict == Verdict.STICTION
     assert [n for n in g.loops if after[n].verdict == Verdict.STICTION] == ["FIC101"]
+
+
+def test_a_second_valve_that_leads_with_its_own_evidence_is_a_source_of_its_own() -> None:
+    """Two sticky valves whose cycles merged into one group (the benchmark's two-3): one
+    called stiction at 0.88, the other's own window says no_stiction at 0.2 while a sticky
+    valve explains its PV (0.93) and it leads the group (+1.38); they do not drive each
+    other. Both are sources."""
+    a = _loop("FIC1a", confidence=0.88, verdict="stiction", valve_gain=0.54, flow=0.0,
+              nli=2.1)
+    b = _loop("FIC1b", confidence=0.2, valve_gain=0.93, flow=1.38, nli=1.8)
+    d = decide([b, a, *OTHERS], [], _none, _none, cascades={})
+    assert {d.source, *d.also} == {"FIC1a", "FIC1b"} and not d.demoted
+
+
+def test_a_confident_call_gives_way_to_a_loop_with_stronger_evidence_that_leads_it() -> None:
+    """The benchmark's sticky-5 at 60 s: a level loop called stiction at 0.92 with nothing
+    else for it; the sticky flow loop (its window 0.82) has a valve fit (0.19) and leads it
+    (+0.3): the flow loop is the source, the level follows."""
+    level = _loop("LIC2", confidence=0.92, verdict="stiction", flow=-0.05, nli=0.3)
+    flow_loop = _loop("FIC1", confidence=0.82, verdict="undetermined", valve_gain=0.19,
+                      flow=0.18, nli=0.7)
+    leads = {("FIC1", "LIC2"): 0.3}
+
+    def flow(a: str, b: str) -> float:
+        return leads.get((a, b), -leads.get((b, a), 0.0))
+
+    d = decide([flow_loop, level, *OTHERS], [], flow, lambda a, b: max(flow(a, b), 0.0),
+               cascades={}, period=11.5)
+    assert d.source == "FIC1" and "LIC2" in d.demoted
+    # without the lead (a cycle of 2.7 samples: direction does not count) the call stands
+    d = decide([flow_loop, level, *OTHERS], [], flow, lambda a, b: max(flow(a, b), 0.0),
+               cascades={}, period=2.7)
+    assert d.source == "LIC2" and not d.demoted
