@@ -58,15 +58,16 @@ loop's valve (its "valve" is the inner loop): in 1 the inner loop takes its plac
 outer loop follows. Every other member whose own verdict is ``stiction`` (or whose valve
 names it, or that leads the group with its own valve as in 3) follows the source when the
 source leads it (Granger gain from the source at least ``COUPLED`` and net flow from it
-positive) or its cycle is in step with the source's
-(coherence at least ``IN_STEP``: one cycle, carried); a loop whose own window says
+positive) or its cycle is in step with the source's (coherence at least ``IN_STEP``: one
+cycle, carried); a loop whose own window says
 ``stiction`` at ``CONFIDENT`` or more follows only a source whose evidence is clearly
 stronger than its own (:func:`stronger`), and is overridden in 1 only by such a loop. Of
 several called loops the source is the best ranked that no other has stronger evidence
-than while it carries that other's cycle. A follower's reason names that evidence; a called
-member that follows no source is a source of its own (two sticky valves at one period) or,
-in a group with no loop source or clearly trailing another loop, kept. A declared
-cascade's outer loop is never a source of its own, nor taken from its inner loop.
+than while it carries that other's cycle (of the ``RIVALS`` best ranked). A follower's
+reason names that evidence; a called member that follows no source is a source of its own
+(two sticky valves at one period) or, in a group with no loop source or clearly trailing
+another loop, kept. A declared cascade's outer loop is never a source of its own, nor taken
+from its inner loop.
 
 Hysteresis (the gateway's successive rounds): a source named last round stays the source
 while it is a member, still has evidence of its own at a lower bar (called ``stiction``, a
@@ -122,6 +123,9 @@ CONFIDENT = 0.9
 """A loop's own ``stiction`` at this confidence or more is overturned only by a loop named
 the source on stronger evidence than its own."""
 HOLD_CONFIDENCE = 0.5
+RIVALS = 4
+"""Called loops compared with each other for the source's place (the best ranked: a group of
+hundreds of suspected loops compares a few, not every pair)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -220,8 +224,9 @@ def _choose(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvi
     named: list[str] = []
     over: str | None = None
     if called:  # the first no other called loop in its cycle has stronger evidence than
-        best = next((c for c in called if not any(
-            stronger(d, c, resolved) and carries(d, c) for d in called if d is not c)),
+        rivals = called[:RIVALS]
+        best = next((c for c in rivals if not any(
+            stronger(d, c, resolved) and carries(d, c) for d in rivals if d is not c)),
             called[0])
         if top is not best and _overrides(top, best, flow, cascades, resolved):
             source, over = top, best.loop
@@ -301,8 +306,9 @@ def decide(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvid
     kept: dict[str, str] = {}
     also: list[str] = []
     for e in ranking:
-        if e is source or not (e.called or e.valve_named or
-                               "own valve" in _leads(e, ranking, indicators)):
+        if e is source or not (e.called or e.valve_named or (
+                (e.flow or 0.0) >= FLOW_NAME and e.valve >= SOURCE_SCORE
+                and "own valve" in _leads(e, ranking, indicators))):
             continue
         if source is None:
             if e.called:
