@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import signal as sp_signal
 
 import stiction
 from stiction import Assessment, analyze
@@ -22,10 +23,16 @@ from stiction.scenarios.plants import plant_scenarios
 
 CACHE = Path(os.environ.get("PLANTWIDE_CACHE", Path(__file__).resolve().parent / ".cache"))
 DURATION, SAMPLE = 14400.0, 1
-VIEWS = (1.0, 4.0, 20.0, 60.0)
-"""Sample times of the views, s: the simulation's own 1 s, the gateway's polling at 4 s and
+VIEWS = ("1", "4", "20", "60", "20h")
+"""The views, by sample time in s: the simulation's own 1 s, the gateway's polling at 4 s and
 a historian's exports at 20 and 60 s (every 4th, 20th or 60th sample, as the plant
-simulator's exports are written: ``stiction simulate --plant --ts``)."""
+simulator's exports are written: ``stiction simulate --plant --ts``); "h": as a historian
+stores it too (:func:`historian`)."""
+SENSOR_TAU, DEADBAND, QUANTUM = 30.0, 0.1, 0.02
+"""The historian view's nuisance: each indicator read through a transmitter lag (s), every
+signal stored only when it moved by ``DEADBAND`` since the value stored last (exception
+compression: the export interpolates between stored values), written in steps of
+``QUANTUM`` (OP in % of span, PV and indicators in their units about 50)."""
 
 Analysed = list[tuple[PlantRecord, dict[str, Assessment]]]
 
@@ -115,24 +122,69 @@ def resampled(rec: PlantRecord, ts: float) -> PlantRecord:
                        at(rec.vp))
 
 
-def view(kind: str, count: int, seed: int, ts: float) -> Analysed:
-    """The plants of ``kind`` at sample time ``ts`` (a view of :data:`VIEWS`), each loop
-    analysed at that sampling."""
+def _stored(x: np.ndarray) -> np.ndarray:
+    """The samples of ``x`` an exception-compressing historian keeps (``DEADBAND``), and the
+    last."""
+    keep = [0]
+    last = x[0]
+    for i in range(1, x.size):
+        if abs(x[i] - last) > DEADBAND:
+            keep.append(i)
+            last = x[i]
+    if keep[-1] != x.size - 1:
+        keep.append(x.size - 1)
+    return np.asarray(keep)
+
+
+def historian(rec: PlantRecord, ts: float) -> PlantRecord:
+    """``rec`` as a historian stores and exports it (:data:`SENSOR_TAU`): indicators through a
+    transmitter lag, every signal compressed and quantised, the export every ``ts`` s."""
+    n = next(iter(rec.op.values())).size
+    t = np.arange(n) * rec.ts
+    grid = np.arange(0.0, t[-1] + 1e-9, ts)
+    a = float(np.exp(-rec.ts / SENSOR_TAU))
+
+    def lagged(x: np.ndarray) -> np.ndarray:
+        return np.asarray(sp_signal.lfilter([1.0 - a], [1.0, -a], x - x[0]) + x[0])
+
+    def export(series: dict[str, np.ndarray], lag: bool = False) -> dict[str, np.ndarray]:
+        out = {}
+        for k, v in series.items():
+            x = lagged(v) if lag else v
+            kept = _stored(x)
+            out[k] = np.round(np.interp(grid, t[kept], x[kept]) / QUANTUM) * QUANTUM
+        return out
+
+    return PlantRecord(rec.scenario, ts, export(rec.op), export(rec.pv),
+                       export(rec.indicators, lag=True),
+                       {k: np.interp(grid, t, v) for k, v in rec.vp.items()})
+
+
+def view_ts(name: str) -> tuple[float, bool]:
+    """A view's sample time and whether it is a historian's (:data:`VIEWS`)."""
+    return float(name.rstrip("h")), name.endswith("h")
+
+
+def view(kind: str, count: int, seed: int, name: str) -> Analysed:
+    """The plants of ``kind`` in view ``name`` (:data:`VIEWS`), each loop analysed at that
+    sampling."""
     base = simulated(kind, count, seed)
-    if ts == SAMPLE:
+    ts, stored = view_ts(name)
+    if ts == SAMPLE and not stored:
         return base
-    key = _plants_key(kind, count, seed) + _code_key()
+    key = _plants_key(kind, count, seed) + _code_key() + (
+        f"{SENSOR_TAU:g}-{DEADBAND:g}-{QUANTUM:g}" if stored else "")
 
     def make() -> Analysed:
         out = []
         for rec, _before in base:
-            r = resampled(rec, ts)
+            r = historian(rec, ts) if stored else resampled(rec, ts)
             proc = processes(r)
             out.append((r, {n: analyze(r.op[n], r.pv[n], ts=ts, process=proc[n])
                             for n in r.op}))
         return out
 
-    return list(_pickled(CACHE / f"plants-{kind}-{ts:g}s-{key}.pickle", make))
+    return list(_pickled(CACHE / f"plants-{kind}-{name}s-{key}.pickle", make))
 
 
 def tep_runs() -> list[tuple[Any, dict[str, Assessment]]]:

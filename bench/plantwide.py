@@ -8,7 +8,9 @@ bench/_plantwide_data.py):
   loops), ``cascade`` (the sticky valve in the inner loop of a declared cascade), ``two``
   (two sticky valves), ``external`` (a periodic load from outside, good valves), ``tuning``
   (an aggressively tuned loop feeding others), ``quiet`` (loads only); 4 h simulated at 1 s
-  and seen at 1 s, at the gateway's 4 s and as a historian exports them (20 and 60 s).
+  and seen at 1 s, at the gateway's 4 s and as a historian exports them (20 and 60 s; and
+  at 20 s as a historian stores them: indicators through a 30 s transmitter lag, every
+  signal compressed and quantised, :func:`bench._plantwide_data.historian`).
   Development seeds (the thresholds of stiction.plant were set on them) and held-out
   seeds, reported apart. A sticky valve counts for "named" when its cycle is resolved
   (at least ``RESOLVED`` samples a period: at 60 s a two-minute cycle is not, and is
@@ -25,7 +27,8 @@ named a valve source (named, and called ``stiction``) in plants without a sticky
 those with no other loop named their group's source (issue 37: target 0).
 
 ``python -m bench plantwide``; ``PLANTWIDE_PLANTS=N`` plants per kind and seed (default
-30); ``PLANTWIDE_VIEWS=4,60`` some views only (``PLANTWIDE_VIEWS=none``: the TEP runs only);
+30); ``PLANTWIDE_VIEWS=4,60,20h`` some views only (``PLANTWIDE_VIEWS=none``: the TEP runs
+only);
 ``PLANTWIDE_CORPUS=DIR`` the corpus folder (default bench/.cache/corpus).
 """
 
@@ -40,7 +43,17 @@ from typing import Any
 import numpy as np
 from scipy import signal as sp_signal
 
-from bench._plantwide_data import VIEWS, cascades, processes, tep_runs, view
+from bench._plantwide_data import (
+    DEADBAND,
+    QUANTUM,
+    SENSOR_TAU,
+    VIEWS,
+    cascades,
+    processes,
+    tep_runs,
+    view,
+    view_ts,
+)
 from stiction import Assessment, Verdict
 from stiction.cli.plantout import as_json, text_lines
 from stiction.plant import Group, PlantAssessment, analyze_plant
@@ -173,12 +186,12 @@ def score(kind: str, rec: PlantRecord, before: dict[str, Assessment],
     return c
 
 
-def run(count: int, seeds: tuple[int, ...], ts: float) -> dict[str, collections.Counter[str]]:
+def run(count: int, seeds: tuple[int, ...], name: str) -> dict[str, collections.Counter[str]]:
     totals: dict[str, collections.Counter[str]] = {}
     for kind in PLANT_KINDS:
         c: collections.Counter[str] = collections.Counter()
         for seed in seeds:
-            for rec, before in view(kind, count, seed, ts):
+            for rec, before in view(kind, count, seed, name):
                 pa = analyze_plant({n: (rec.op[n], rec.pv[n]) for n in rec.op}, ts=rec.ts,
                                    indicators=rec.indicators, assessments=before,
                                    processes=processes(rec), cascades=cascades(rec))
@@ -275,13 +288,16 @@ def main() -> None:
     count = int(os.environ.get("PLANTWIDE_PLANTS", "30"))
     chosen = os.environ.get("PLANTWIDE_VIEWS", "")
     views = () if chosen == "none" else \
-        tuple(float(v) for v in chosen.split(",") if v) or VIEWS
+        tuple(v.strip() for v in chosen.split(",") if v.strip()) or VIEWS
     warnings.filterwarnings("ignore", category=RuntimeWarning)  # coherence of a flat series
-    for ts in views:
+    for name in views:
+        ts, stored = view_ts(name)
+        how = (f" as a historian stores it (indicators lagged {SENSOR_TAU:g} s, compressed by "
+               f"{DEADBAND:g}, in steps of {QUANTUM:g})") if stored else ""
         for label, seeds in (("development", SEEDS), ("held out", HELD_OUT)):
-            print(f"== plant-wide: own plants at {ts:g} s, {label} seeds {seeds} ({count} per "
-                  "kind and seed) ==", flush=True)
-            report(run(count, seeds, ts))
+            print(f"== plant-wide: own plants at {ts:g} s{how}, {label} seeds {seeds} ({count} "
+                  "per kind and seed) ==", flush=True)
+            report(run(count, seeds, name))
     tep()
     print(f"({time.perf_counter() - t0:.0f} s)")
 
