@@ -350,6 +350,5 @@ def _follows(source: MemberEvidence, e: MemberEvidence, *, named: Sequence[str],
         return f"{source.loop} leads its cycle (Granger net flow {net:+.2f})"
     coh = 0.0 if coherence is None else coherence(source.loop, e.loop)
     if coh >= IN_STEP:
-        return (f"its cycle is in step with {source.loop}'s (coherence {coh:.2f}), which has "
-                "the stronger evidence")
+        return f"its cycle is in step with {source.loop}'s (coherence {coh:.2f})"
     return None
