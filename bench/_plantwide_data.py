@@ -4,6 +4,7 @@ bench/.cache by the generators' and the analysis' source."""
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import inspect
 import os
@@ -12,19 +13,26 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import signal as sp_signal
 
 import stiction
 from stiction import Assessment, analyze
 from stiction.scenarios import plant as plant_module
-from stiction.scenarios import plants as plants_module
 from stiction.scenarios.plant import PlantRecord, simulate_plants
 from stiction.scenarios.plants import plant_scenarios
 
-CACHE = Path(__file__).resolve().parent / ".cache"
-DURATION, SAMPLE = 14400.0, 4
-VIEWS = (4.0, 10.0, 20.0, 60.0)
-"""Sample times of the views, s: the gateway's (the simulation kept every 4 s) and a
-historian's interpolated exports at 10, 20 and 60 s."""
+CACHE = Path(os.environ.get("PLANTWIDE_CACHE", Path(__file__).resolve().parent / ".cache"))
+DURATION, SAMPLE = 14400.0, 1
+VIEWS = ("1", "4", "20", "60", "20h")
+"""The views, by sample time in s: the simulation's own 1 s, the gateway's polling at 4 s and
+a historian's exports at 20 and 60 s (every 4th, 20th or 60th sample, as the plant
+simulator's exports are written: ``stiction simulate --plant --ts``); "h": as a historian
+stores it too (:func:`historian`)."""
+SENSOR_TAU, DEADBAND, QUANTUM = 30.0, 0.1, 0.02
+"""The historian view's nuisance: each indicator read through a transmitter lag (s), every
+signal stored only when it moved by ``DEADBAND`` since the value stored last (exception
+compression: the export interpolates between stored values), written in steps of
+``QUANTUM`` (OP in % of span, PV and indicators in their units about 50)."""
 
 Analysed = list[tuple[PlantRecord, dict[str, Assessment]]]
 
@@ -50,23 +58,44 @@ def _pickled(path: Path, make: Any) -> Any:
 
 
 def _code_key() -> str:
-    """The per-loop analysis' code: stiction/ without the plant view and the CLI (a change
-    to the plant view analyses nothing again)."""
+    """The per-loop analysis' code: stiction/ without the plant view, the CLI and the
+    scenarios (a change to the plant view analyses nothing again; the plants simulated are
+    keyed by what was drawn, :func:`_plants_key`)."""
     root = Path(stiction.__file__).resolve().parent
     h = hashlib.sha256()
     for p in sorted(root.rglob("*.py")):
-        if not {"cli", "plant"} & set(p.relative_to(root).parts[:1]):
+        if not {"cli", "plant", "scenarios"} & set(p.relative_to(root).parts[:1]):
             h.update(p.read_bytes())
     return h.hexdigest()[:16]
 
 
-def simulated(kind: str, count: int, seed: int) -> Analysed:
-    """The plants of ``kind`` at the gateway's 4 s, each loop analysed (the records of
-    ``python -m bench plantwide`` before issue 29: same cache)."""
-    src = inspect.getsource(plant_module) + inspect.getsource(plants_module)
-    key = hashlib.sha256(f"{src}{kind}{count}{seed}{DURATION}{SAMPLE}".encode()).hexdigest()
+def _drawn(x: Any) -> str:
+    """``x`` (the scenarios drawn) as text, a dataclass's fields at their defaults left out
+    (a field added with a default that changes nothing keeps the key)."""
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        parts = [f"{f.name}={_drawn(getattr(x, f.name))}" for f in dataclasses.fields(x)
+                 if f.default is dataclasses.MISSING or getattr(x, f.name) != f.default]
+        return f"{type(x).__name__}({', '.join(parts)})"
+    if isinstance(x, (list, tuple)):
+        return "[" + ", ".join(_drawn(v) for v in x) + "]"
+    if isinstance(x, dict):
+        return "{" + ", ".join(f"{k!r}: {_drawn(v)}" for k, v in x.items()) + "}"
+    return repr(x)
 
-    def make() -> Analysed:  # (the analysis is not in the key: the cache of issue 21)
+
+def _plants_key(kind: str, count: int, seed: int) -> str:
+    """The plants drawn (their parameters) and the simulator's code: the same plants give
+    the same key in any tree (the baseline's too)."""
+    drawn = _drawn(plant_scenarios(kind, count, seed=seed))
+    src = inspect.getsource(plant_module)
+    return hashlib.sha256(f"{src}{drawn}{DURATION}{SAMPLE}{seed}".encode()).hexdigest()[:16]
+
+
+def simulated(kind: str, count: int, seed: int) -> Analysed:
+    """The plants of ``kind`` at the simulation's 1 s, each loop analysed."""
+    key = _plants_key(kind, count, seed) + _code_key()
+
+    def make() -> Analysed:
         scenarios = plant_scenarios(kind, count, seed=seed)
         out = []
         for i in range(0, len(scenarios), 10):
@@ -77,7 +106,7 @@ def simulated(kind: str, count: int, seed: int) -> Analysed:
                                   for n in rec.op}))
         return out
 
-    return list(_pickled(CACHE / f"plants-{kind}-{key[:16]}.pickle", make))
+    return list(_pickled(CACHE / f"plants-{kind}-{key}.pickle", make))
 
 
 def resampled(rec: PlantRecord, ts: float) -> PlantRecord:
@@ -93,25 +122,69 @@ def resampled(rec: PlantRecord, ts: float) -> PlantRecord:
                        at(rec.vp))
 
 
-def view(kind: str, count: int, seed: int, ts: float) -> Analysed:
-    """The plants of ``kind`` at sample time ``ts`` (a view of :data:`VIEWS`), each loop
-    analysed at that sampling."""
+def _stored(x: np.ndarray) -> np.ndarray:
+    """The samples of ``x`` an exception-compressing historian keeps (``DEADBAND``), and the
+    last."""
+    keep = [0]
+    last = x[0]
+    for i in range(1, x.size):
+        if abs(x[i] - last) > DEADBAND:
+            keep.append(i)
+            last = x[i]
+    if keep[-1] != x.size - 1:
+        keep.append(x.size - 1)
+    return np.asarray(keep)
+
+
+def historian(rec: PlantRecord, ts: float) -> PlantRecord:
+    """``rec`` as a historian stores and exports it (:data:`SENSOR_TAU`): indicators through a
+    transmitter lag, every signal compressed and quantised, the export every ``ts`` s."""
+    n = next(iter(rec.op.values())).size
+    t = np.arange(n) * rec.ts
+    grid = np.arange(0.0, t[-1] + 1e-9, ts)
+    a = float(np.exp(-rec.ts / SENSOR_TAU))
+
+    def lagged(x: np.ndarray) -> np.ndarray:
+        return np.asarray(sp_signal.lfilter([1.0 - a], [1.0, -a], x - x[0]) + x[0])
+
+    def export(series: dict[str, np.ndarray], lag: bool = False) -> dict[str, np.ndarray]:
+        out = {}
+        for k, v in series.items():
+            x = lagged(v) if lag else v
+            kept = _stored(x)
+            out[k] = np.round(np.interp(grid, t[kept], x[kept]) / QUANTUM) * QUANTUM
+        return out
+
+    return PlantRecord(rec.scenario, ts, export(rec.op), export(rec.pv),
+                       export(rec.indicators, lag=True),
+                       {k: np.interp(grid, t, v) for k, v in rec.vp.items()})
+
+
+def view_ts(name: str) -> tuple[float, bool]:
+    """A view's sample time and whether it is a historian's (:data:`VIEWS`)."""
+    return float(name.rstrip("h")), name.endswith("h")
+
+
+def view(kind: str, count: int, seed: int, name: str) -> Analysed:
+    """The plants of ``kind`` in view ``name`` (:data:`VIEWS`), each loop analysed at that
+    sampling."""
     base = simulated(kind, count, seed)
-    if ts == SAMPLE:
+    ts, stored = view_ts(name)
+    if ts == SAMPLE and not stored:
         return base
-    src = inspect.getsource(plant_module) + inspect.getsource(plants_module)
-    key = hashlib.sha256(f"{src}{_code_key()}{kind}{count}{seed}{ts}".encode()).hexdigest()
+    key = _plants_key(kind, count, seed) + _code_key() + (
+        f"{SENSOR_TAU:g}-{DEADBAND:g}-{QUANTUM:g}" if stored else "")
 
     def make() -> Analysed:
         out = []
         for rec, _before in base:
-            r = resampled(rec, ts)
+            r = historian(rec, ts) if stored else resampled(rec, ts)
             proc = processes(r)
             out.append((r, {n: analyze(r.op[n], r.pv[n], ts=ts, process=proc[n])
                             for n in r.op}))
         return out
 
-    return list(_pickled(CACHE / f"plants-{kind}-{ts:g}s-{key[:16]}.pickle", make))
+    return list(_pickled(CACHE / f"plants-{kind}-{name}s-{key}.pickle", make))
 
 
 def tep_runs() -> list[tuple[Any, dict[str, Assessment]]]:

@@ -28,7 +28,7 @@ from .findings import Found, read_findings
 from .loop import view
 from .manifest import Loop
 
-__all__ = ["add_options", "calibrate", "finish", "loop_name", "ranked_table"]
+__all__ = ["add_options", "calibrate", "finish", "loop_name"]
 
 
 def add_options(p: argparse.ArgumentParser) -> None:
@@ -100,6 +100,12 @@ def finish(rows: list[Any], loops: Sequence[Loop], args: argparse.Namespace
     returns the rows to show (``--top``) and lines for stderr."""
     if args.top is not None and args.top < 1:
         raise UsageError(f"--top {args.top}: give a number of rows, 1 or more")
+    if getattr(args, "every", None) is not None:  # a table over time stays in time's order
+        for option in ("findings", "report"):
+            if getattr(args, option) is not None:
+                raise UsageError(f"--{option} judges one window a file; --every gives a table "
+                                 "over time: leave out one of them")
+        return (rows if args.top is None else rows[: args.top]), []
     names = [loop_name(lp) for lp in loops]
     said: list[str] = []
     found: list[Found] = []
@@ -123,7 +129,7 @@ def finish(rows: list[Any], loops: Sequence[Loop], args: argparse.Namespace
     if args.sort == "suspicion":
         annotated.sort(key=lambda x: x[0])
     if args.report is not None:
-        from .report import write_report
+        from .meeting import write_report
 
         crew: dict[str, list[Finding]] = {}
         for f in found:
@@ -133,13 +139,6 @@ def finish(rows: list[Any], loops: Sequence[Loop], args: argparse.Namespace
     out = [row for _r, _n, row in annotated]
     return (out if args.top is None else out[: args.top]), said
 
-
-def ranked_table(text: str, rows: Sequence[Any]) -> str:
-    """``batch.table``'s text with a rank column in front."""
-    lines = text.split("\n")
-    ranks = ["#", *(str(r.shown.get("rank", "-")) if r.shown else "-" for r in rows)]
-    width = max(len(x) for x in ranks)
-    return "\n".join(f"{x:>{width}}  {line}" for x, line in zip(ranks, lines, strict=True))
 
 
 def warn(lines: Sequence[str]) -> None:

@@ -74,6 +74,7 @@ class Site:
         self.h.registry.register(SiteCollector(self.crew.site))
         self.sched = AnalysisScheduler(self.h.runtime.groups, self.h.store,
                                        interval_wall_s=1e9, analyze=CONF, hooks=self.crew,
+                                       plant=self.h.config.plant,  # off, as mconfig says
                                        executor=lambda: ThreadPoolExecutor(1))
         self.file = CalibrationFile(self.h.runtime.binding(), self.crew.site,
                                     wall=lambda: self.h.time.wall)

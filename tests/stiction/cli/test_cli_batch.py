@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from detector_fixtures import write_loop_csv
 
+from stiction import Verdict
 from stiction.cli import main
 from stiction.cli.batch import Progress, flatten, short_reason
 from stiction.scenarios import scenario, simulate
@@ -68,6 +69,7 @@ def test_good_unreadable_and_bad_data_files_mixed(unit: Path, monkeypatch: pytes
                                    "--sort", "file"])
     assert code == 0
     lines = out.splitlines()
+    lines = lines[:lines.index("what each verdict means:")]  # the legend follows the table
     assert lines[0].split() == ["#", "file", "verdict", "conf", "fd", "fs", "unit", "period",
                                 "reason"]  # (#: the rank, issue 39)
     rows = {line.split()[1]: line.split(None, 1)[1] for line in lines[1:]}
@@ -139,14 +141,15 @@ def _parsed(cell: str, like: Any) -> Any:
 
 def test_one_file_prints_what_it_printed(unit: Path, tmp_path: Path,
                                          capsys: pytest.CaptureFixture[str]) -> None:
-    """One file: the single object and the text of before (byte for byte for a window whose
+    """One file: the single object and its text (byte for byte for a window whose
     output does not depend on the learned decision); --csv writes its one row."""
     code, out, _ = _run(capsys, ["analyze", str(unit / "short.csv")])
     assert code == 0
     assert out == ("verdict: bad_data\n"
                    "reason:  window too short: 10 samples, need at least 32\n"
-                   "  oscillating: False\n"
-                   "  multi_jump: False\n")
+                   f"means:   {Verdict.BAD_DATA.advice}\n"
+                   "  oscillating: no\n"
+                   "  multi_jump: no\n")
     code, out, _ = _run(capsys, ["analyze", str(unit / "short.csv"), "--json"])
     assert json.loads(out)["verdict"] == "bad_data" and out.startswith("{")
     code, out, _ = _run(capsys, ["analyze", str(unit / "text.csv")])
@@ -251,10 +254,12 @@ def test_plots_one_png_per_file(unit: Path, tmp_path: Path,
 
 
 def test_short_reason_and_progress_bar() -> None:
-    assert short_reason("stiction, confidence 0.98. Tests: stiction: kano; cannot tell: "
-                        "horch. Weighed most ...") == "Tests: stiction: kano; cannot tell: horch."
+    assert short_reason("not stiction, confidence of stiction 0.05. Tests: stiction: kano; "
+                        "cannot tell: horch. Weighed most in the decision: for stiction: the "
+                        "shape of OP and PV.") == "Tests: stiction: kano; cannot tell: horch."
     assert short_reason("undetermined, confidence of stiction 0.55: between what the tests "
-                        "tell apart. Tests: ...") == "between what the tests tell apart."
+                        "tell apart. Tests: cannot tell: kano. Nothing weighed much either "
+                        "way in the decision.") == "between what the tests tell apart."
     stream = io.StringIO()
     bar = Progress(4, stream)
     bar.show(1, "b.csv")
