@@ -28,6 +28,8 @@ diagnosis   detectors, quantify, signal
 plant       diagnosis and everything below it (the plant-wide view)
 paper       diagnosis, scenarios, models      (the paper's tables, reproduced)
 valvetest   signal                            (step tests in manual: never the diagnosis)
+ranking     diagnosis and everything below it (the list worst first, a site's calibration)
+report      the ground                        (the maintenance meeting's page: HTML and SVG)
 cli         all of the above
 ==========  ===============================================================================
 
@@ -90,6 +92,8 @@ STICTION_BELOW: dict[str, set[str]] = {
     "plant": {"diagnosis", "detectors", "quantify", "signal", *GROUND},
     "paper": {"diagnosis", "scenarios", "models", "signal", *GROUND},
     "valvetest": {"signal", *GROUND},
+    "ranking": {"diagnosis", "detectors", "quantify", "signal", *GROUND},
+    "report": {*GROUND},
 }
 STICTION_BELOW["cli"] = set(STICTION_BELOW) - {"cli"}
 STICTION_BELOW[""] = STICTION_BELOW["cli"]  # stiction/__init__: the public API

@@ -79,7 +79,7 @@ class Harness:
         """One analysis round, inline; the results are stamped with the fake wall time."""
         done = 0
         for batch in batches(self.runtime.groups, 64):
-            for index, assessment, fill, samples, _dur in analyze_batch(path, batch):
+            for index, assessment, fill, samples, _dur, _swing in analyze_batch(path, batch):
                 self.store.set_result(index, assessment, t=self.time.wall, window_fill=fill,
                                       samples=samples)
                 done += 1

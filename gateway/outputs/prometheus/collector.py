@@ -70,6 +70,13 @@ _FAMILIES = (  # name, help; in the order they are yielded
     ("verdict_hold", "0: the verdict shown was judged by the latest round; 1: held back "
      "while a new one waits for its rounds (hysteresis); 2: held through warming up (at most "
      "the loop's window after it was judged)."),
+    ("suspicion", "The loop's suspicion: the confidence of stiction (the site's calibration "
+     "of it where the site has one) times what its cycle costs (sqrt of the PV amplitude in "
+     "% of span / 1 %, clipped to 1/4..4; 1 without a PV range) times its priority; 0 for a "
+     "loop that is not judged on a cycle."),
+    ("rank", "The loop's place in the list of valves to check, worst first (1 the worst)."),
+    ("verdict_since_timestamp_seconds", "Unix time since which the loop has had its "
+     "current verdict."),
 )
 # the label names of each family, in the order the client library writes them (sorted);
 # its rows hold the values in this order
@@ -131,7 +138,7 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
     families only with ``findings`` (every loop: its latest finding, or ``none``)."""
     out: list[Rows] = [[] for _ in _FAMILIES]
     (si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role, found, when,
-     band, pos, pos_q, judged, hold) = out
+     band, pos, pos_q, judged, hold, suspicion, place, since) = out
     roles = st.plant.roles
     latest = findings.latest if findings is not None else None
     for i, name in enumerate(st.loops):
@@ -157,8 +164,11 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
         a = res.assessment
         for rows, value in ((si, a.stiction_index), (period, a.period_s), (ts, res.t),
                             (fill, res.window_fill), (conf, a.confidence),
-                            (judged, res.judged_at), (hold, res.hold)):
+                            (judged, res.judged_at), (hold, res.hold), (since, res.since)):
             _add(rows, name, value)
+        if st.rank is not None and st.suspicion is not None and st.rank[i] > 0:
+            _add(place, name, int(st.rank[i]))
+            _add(suspicion, name, float(st.suspicion[i]))
         size = a.sizes()
         if size is not None and size.of_span:  # % of span -> the base unit, 0-1
             _add(fd, name, size.fd / 100.0)
