@@ -337,7 +337,12 @@ def publish(store: ResultStore, index: int, assessment: Assessment, *, t: float,
 
 def log_verdict_change(loop: str, before: LoopResult | None, after: Assessment) -> None:
     """One INFO line when a loop's verdict changes (the first assessment too), with the
-    reason: the journal tells each loop's story."""
+    reason: the journal tells each loop's story; a WARNING when the valve's position given
+    stops being used (:attr:`stiction.Assessment.position_use`)."""
+    used = before.assessment.position_use if before is not None else None
+    if after.position_use not in (None, "used") and after.position_use != used:
+        log.warning("loop %s: its valve position is not used (%s): OP and PV decide; see "
+                    "its reason", loop, after.position_use.replace("_", " "))
     was = str(before.assessment.verdict) if before is not None else "none"
     if was == str(after.verdict):
         return

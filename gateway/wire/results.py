@@ -7,7 +7,7 @@ offset and how it is encoded; :func:`result_block` fills a block, :func:`decode_
 reads one back, :data:`VERDICT_CODES` numbers the verdicts, and
 :func:`overlapping_blocks` finds blocks that share registers (the config loader refuses
 them). Adding a field is one :class:`Field` line in :data:`EXTENSION` (at the next free
-offset, +28 on; the 20 registers of :data:`LAYOUT` are full) and one entry in
+offset, +29 on; the 20 registers of :data:`LAYOUT` are full) and one entry in
 :func:`block_values`.
 """
 
@@ -173,9 +173,18 @@ EXTENSION: tuple[Field, ...] = (
           "the loop's suspicion: confidence of stiction (+16) x what its cycle costs (the "
           "PV amplitude, where the PV has a range) x its priority; 0 for a loop not judged "
           "on a cycle; NaN without an assessment"),
+    Field("position_use", 28, "uint16", "code",
+          "the valve's position in the latest assessment: 0 no position given (none "
+          "configured, or no assessment), 1 used (its travel decided), 2 could not tell "
+          "(too gappy or too few reversals: OP and PV decided), 3 not a position (it moved "
+          "against OP, in another scale, late, or held while PV moved: OP and PV decided, "
+          "the reason says why)"),
 )
-"""The extended block's fields after the 20 registers (``block_registers: 32``); +28..+31
+"""The extended block's fields after the 20 registers (``block_registers: 32``); +29..+31
 are reserved (read 0) for the fields to come, which take the next free offsets."""
+
+POSITION_USE_CODES = {None: 0, "used": 1, "could_not_tell": 2, "not_a_position": 3}
+"""Register +28's code of :attr:`stiction.Assessment.position_use`."""
 
 
 def layout(size: int = RESULT_BLOCK_SIZE) -> tuple[Field, ...]:
@@ -255,7 +264,8 @@ def _values(result: LoopResultLike | None, code: int, plant: tuple[int, int, int
             "timestamp": max(0, int(result.t)),
             "window_fill": result.window_fill, "confidence": _num(a.confidence),
             "judged": max(0, int(getattr(result, "judged_at", result.t))),
-            "hold": int(getattr(result, "hold", 0)), **plant_values}
+            "hold": int(getattr(result, "hold", 0)),
+            "position_use": POSITION_USE_CODES.get(a.position_use, 0), **plant_values}
 
 
 def result_block(result: LoopResultLike | None, *, code: int, word_order: str = "big",

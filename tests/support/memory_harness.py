@@ -91,8 +91,9 @@ class Harness:
 
     def block(self, loop: str) -> NDArray[np.uint16]:
         lc = self.config.loops[self.store.index[loop]]
+        size = self.config.modbus_server.block_registers
         return self.registers(self.results.unit_of(lc))[lc.result_address:
-                                                         lc.result_address + 20]
+                                                         lc.result_address + size]
 
     def metric(self, name: str, **labels: str) -> float | None:
         return self.registry.get_sample_value(name, labels)

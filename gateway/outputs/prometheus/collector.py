@@ -28,12 +28,13 @@ from prometheus_client.utils import floatToGoString
 
 from ...core.findings import FindingsBook, FindingsView, day_start
 from ...core.store import NO_POSITION, ResultStore, StoreSnapshot
-from ...wire.results import VERDICT_CODES
+from ...wire.results import POSITION_USE_CODES, VERDICT_CODES
 
 __all__ = ["PREFIX", "StoreCollector"]
 
 PREFIX = "stiction"
 VERDICTS = tuple(str(v) for v in VERDICT_CODES)
+POSITION_USES = tuple(u for u in POSITION_USE_CODES if u is not None)
 Rows = list[tuple[tuple[str, ...], float]]
 _FAMILIES = (  # name, help; in the order they are yielded
     ("stiction_index", "Stiction index of the latest assessment (He et al. 2007)."),
@@ -77,11 +78,16 @@ _FAMILIES = (  # name, help; in the order they are yielded
     ("rank", "The loop's place in the list of valves to check, worst first (1 the worst)."),
     ("verdict_since_timestamp_seconds", "Unix time since which the loop has had its "
      "current verdict."),
+    ("position_use", "Loops whose assessment was given a valve position: 1 for what became "
+     "of it (used: its travel decided; could_not_tell: too gappy or too few reversals, OP "
+     "and PV decided; not_a_position: it did not show it is the valve's position, OP and PV "
+     "decided and the reason says why), 0 for the others."),
 )
 # the label names of each family, in the order the client library writes them (sorted);
 # its rows hold the values in this order
 _KEYS: dict[str, tuple[str, ...]] = {"verdict": ("loop", "verdict"), "plant_role": ("loop", "role"),
-                                     "finding": ("finding", "loop")}
+                                     "finding": ("finding", "loop"),
+                                     "position_use": ("loop", "use")}
 ROLES = ("source", "follower")
 _FAST_ESCAPINGS = (om.UNDERSCORES, om.ALLOWUTF8)  # legacy names stay as they are
 
@@ -138,7 +144,7 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
     families only with ``findings`` (every loop: its latest finding, or ``none``)."""
     out: list[Rows] = [[] for _ in _FAMILIES]
     (si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role, found, when,
-     band, pos, pos_q, judged, hold, suspicion, place, since) = out
+     band, pos, pos_q, judged, hold, suspicion, place, since, pos_use) = out
     roles = st.plant.roles
     latest = findings.latest if findings is not None else None
     for i, name in enumerate(st.loops):
@@ -166,6 +172,9 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
                             (fill, res.window_fill), (conf, a.confidence),
                             (judged, res.judged_at), (hold, res.hold), (since, res.since)):
             _add(rows, name, value)
+        if a.position_use is not None:
+            pos_use.extend(((name, u), 1.0 if u == a.position_use else 0.0)
+                           for u in POSITION_USES)
         if st.rank is not None and st.suspicion is not None and st.rank[i] > 0:
             _add(place, name, int(st.rank[i]))
             _add(suspicion, name, float(st.suspicion[i]))
