@@ -8,7 +8,8 @@ baseline commit (before) and on this tree (after), side by side in one run.
 Each case is a function in a file of ``bench/_caselist/`` decorated with ``_case.case``; the
 file runs as a script (``python FILE NAME``) with the tree under test first on
 ``PYTHONPATH``, so ``stiction``, ``gateway`` and ``plcsim`` are that tree's (the baseline's
-extracted by ``git archive``, :func:`bench._arena.baseline_tree`). A case prints one JSON line:
+extracted by ``git archive``, :func:`bench.attacks._arena.baseline_tree`). A case prints one
+JSON line:
 ``said`` (what the tree answered, in a few words) and ``ok`` (whether that answer is the one
 the finding asks for). A case that raises is reported with the exception's last line and is
 not ok. Cases run one at a time; each has ``TIMEOUT_S`` seconds.
@@ -24,7 +25,7 @@ import textwrap
 import time
 from pathlib import Path
 
-from bench._arena import REPO, baseline_tree
+from bench.attacks._arena import REPO, baseline_tree
 
 BASELINE = "5c94178"  # main when issues 35 and 38 were filed
 HERE = Path(__file__).resolve().parent / "_caselist"

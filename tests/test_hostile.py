@@ -10,7 +10,7 @@ the day the issue was filed), in memory where possible.
    identification announcing "Pymodbus", verdict changes not logged, ``stiction analyze |
    head`` and a CSV with a byte-order mark (these two fixed on main already: checked here).
 
-The 2,000-connection figures are ``python -m bench hostile``'s (bench/hostile.py); the
+The 2,000-connection figures are ``python -m bench hostile``'s (bench/attacks/hostile.py); the
 tests use a few hundred connections at most.
 """
 

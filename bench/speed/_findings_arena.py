@@ -1,9 +1,9 @@
 """One gateway of 2,000 loops with a findings file of 20,000 rows, in this process, on the
-tree first on ``PYTHONPATH`` (run as a script by :mod:`bench.findings_scale`): how long the
+tree first on ``PYTHONPATH`` (run as a script by :mod:`bench.speed.findings_scale`): how long the
 event loop stalls and how many poll ticks pass while each loop gets its first verdict and
 the rounds after. Imports only the tree under test, numpy, yaml and the standard library.
 
-    python bench/_findings_arena.py '{"loops": 2000, "findings": 20000, "rounds": 3}'
+    python bench/speed/_findings_arena.py '{"loops": 2000, "findings": 20000, "rounds": 3}'
 
 prints JSON lines, the last one the figures: ``stall_s`` (the longest a 10 ms timer on the
 event loop was late),

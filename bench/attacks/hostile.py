@@ -1,5 +1,6 @@
-"""Red-team benchmarks: issue 15 (here), issue 22 (bench/_hostile22.py) and issue 31
-(bench/_hostile31.py: a wall clock stepped back, short windows, a reconnect storm), in turn.
+"""Red-team benchmarks: issue 15 (here), issue 22 (bench/attacks/_server_attacks.py) and
+issue 31 (bench/attacks/_clock_windows_storm.py: a wall clock stepped back, short windows, a
+reconnect storm), in turn.
 
 Issue 15: the gateway under 2,000 half-open connections and 2,000 garbage frames, with the
 open-files limit of the systemd unit.
@@ -40,10 +41,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from bench._attacks import Scada
 from bench._net import free_port, wait_port
+from bench.attacks._attacks import Scada
 
-UNIT = Path(__file__).resolve().parents[1] / "deploy" / "systemd" / "stiction-gateway.service"
+UNIT = Path(__file__).resolve().parents[2] / "deploy" / "systemd" / "stiction-gateway.service"
 PHASE_S = 12.0
 HALF_OPEN = 1000  # per server: 2,000 in all
 GARBAGE = 1000  # per server: 2,000 in all

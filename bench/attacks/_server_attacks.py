@@ -1,11 +1,11 @@
 """Issue 22 in ``python -m bench hostile``: each attack of the red team against the gateway
-of the baseline commit and against this tree's, in one run, side by side (bench/_arena.py
+of the baseline commit and against this tree's, in one run, side by side (bench/attacks/_arena.py
 says how: ``git archive`` of the baseline, two ``stiction-gateway run`` processes, one
 after the other, polling the same simulated PLC).
 
 Tables:
 
-1. the attacks on the servers at 2,000 loops polled every second (bench/_attacks.py): per
+1. the attacks on the servers at 2,000 loops polled every second (bench/attacks/_attacks.py): per
    variant the poll rate (GOOD rows of the window per second; nominal 1.0) and the gap rows
    during the attack, RSS growth, the SCADA poller's answers (1 Hz, 20 registers) and p99,
    the slowest honest scrape, the log's growth;
@@ -40,7 +40,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from bench._arena import (
+from bench._net import free_port, wait_port
+from bench.attacks._arena import (
     LOOPS,
     REPO,
     baseline_tree,
@@ -52,8 +53,7 @@ from bench._arena import (
     stop_gateway,
     wait_ready,
 )
-from bench._attacks import ATTACKS, read_frame, rewrite_state, scrape
-from bench._net import free_port, wait_port
+from bench.attacks._attacks import ATTACKS, read_frame, rewrite_state, scrape
 
 
 def _sample(text: str, series: str) -> float | None:
@@ -421,7 +421,7 @@ def capacity(tree: Path, work: Path, plc_port: int) -> list[dict[str, Any]]:
     """Polls and honest reads at growing load: 64 clients (the connection limit), each a
     read of 125 registers every 1/rate s, in two processes."""
     rows = []
-    from bench._arena import gateway_config, window_rows  # noqa: PLC0415
+    from bench.attacks._arena import gateway_config, window_rows  # noqa: PLC0415
 
     for rate in (1.0, 10.0, 50.0, 100.0, 200.0, 400.0):
         here = work / "capacity" / f"{rate:g}"

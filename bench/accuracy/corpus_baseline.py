@@ -3,7 +3,7 @@
 ``python -m bench corpus_baseline`` (after ``python -m lab corpus``) analyses every window
 (``CORPUS_BASELINE_N=k``: at most k per source, view and cause class, drawn with a fixed
 seed) as the gateway would, ``analyze(op, pv, ts=ts, process=process)``, and prints the
-share called: ``stiction`` or ``valve_not_responding`` (as bench/real_data.py counts them).
+share called: ``stiction`` or ``valve_not_responding`` (as bench/accuracy/real_data.py counts them).
 Tables: per source and cause class; the TEP windows per view; the TEP loops with a good
 valve per cause (each disturbance, pooled over the modes). With tep-studio installed it
 also reruns the reported failure (mode 1, seed 3, 48 h at 36 s, XMV 10 -> reactor

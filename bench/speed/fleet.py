@@ -40,7 +40,6 @@ from pathlib import Path
 import yaml
 
 from bench._net import free_port, wait_port
-from bench._scale import SCENARIO_MIX, cpu_seconds, rss_bytes
 from bench._servers import (
     SITE_DEFAULT,
     Prometheus,
@@ -52,6 +51,7 @@ from bench._servers import (
     tool,
     with_flags,
 )
+from bench.speed._scale import SCENARIO_MIX, cpu_seconds, rss_bytes
 
 GATEWAYS, LOOPS = 3, 2000
 SCRAPE_S = 15.0  # the shipped scrape_interval

@@ -1,10 +1,10 @@
 """Issue 31 in ``python -m bench hostile``: three cases of a third round of attacks, each on
 the gateway of the baseline commit (before) and of this tree (after), side by side
-(``git archive`` of the baseline as bench/_arena.py does; ``BENCH_BASELINE31`` names
+(``git archive`` of the baseline as bench/attacks/_arena.py does; ``BENCH_BASELINE31`` names
 another commit).
 
 1. **clock**: the wall clock stepped back an hour across a clean stop, then two hours
-   across a SIGKILL (bench/_clock.py, libfaketime): the gap each restart leaves in the
+   across a SIGKILL (bench/attacks/_clock.py, libfaketime): the gap each restart leaves in the
    window (0: the samples before and after are joined), the sequence numbers SCADA reads
    around the kill, whether the analysis bridges an outage, the warning line and metric.
 2. **short windows**: a simulated PLC of 8 healthy and 4 sticky loops at 20x real time,
@@ -37,10 +37,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from bench._arena import REPO, baseline_tree, start_gateway, stop_gateway, wait_ready
-from bench._attacks import Scada, attack_process
-from bench._clock import clock_case, faketime, summary
 from bench._net import free_port, wait_port
+from bench.attacks._arena import REPO, baseline_tree, start_gateway, stop_gateway, wait_ready
+from bench.attacks._attacks import Scada, attack_process
+from bench.attacks._clock import clock_case, faketime, summary
 
 BASELINE = "3dfa8c7"  # main when issue 31 was filed
 HEALTHY, STICKY = 8, 4

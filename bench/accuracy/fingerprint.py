@@ -11,9 +11,9 @@ by ``repr``, which round-trips exactly), then prints one digest per source:
   where detection does not say stiction);
 - ``false_alarms``: the first seed of ``bench false_alarms``' sweep.
 
-``python -m bench fingerprint`` prints the digests; ``python -m bench.fingerprint --save FILE``
-also writes every result (JSON), ``--against FILE`` compares with a saved run and lists every
-window that moved. A
+``python -m bench fingerprint`` prints the digests;
+``python -m bench.accuracy.fingerprint --save FILE`` also writes every result (JSON),
+``--against FILE`` compares with a saved run and lists every window that moved. A
 refactoring that claims "same results" shows the same digests before and after.
 """
 

@@ -1,6 +1,6 @@
 """Does the crew's feedback teach a site its calibration? (issue 39) Two tables, in one run.
 
-**Simulated sites** whose valves differ from the development corpus (bench/_sites.py:
+**Simulated sites** whose valves differ from the development corpus (bench/accuracy/_sites.py:
 sticky valves gripping harder one way with less overshoot, a historian sampling 8 times
 slower, both; valves with lost motion and no slip, which the crew finds as a dead band):
 72 loops each, 24 with a sticky valve. Every loop is analysed as the gateway analyses it
@@ -31,7 +31,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bench._sites import SITES, site_records
+from bench.accuracy._sites import SITES, site_records
 from lab.sources.records import PLANT
 from stiction import Assessment, Verdict, analyze
 from stiction.ranking import SiteCalibration, fit_site, recalibrate, shipped

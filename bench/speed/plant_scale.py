@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench._arena import baseline_tree
+from bench.attacks._arena import baseline_tree
 from gateway.config import LoopConfig, PlantSettings, PointConfig
 from gateway.core.plant import analyze_plant_job, plant_jobs
 from gateway.core.points import Quality
@@ -119,7 +119,7 @@ import numpy as np
 sys.path.insert(0, sys.argv[1])
 with open(sys.argv[2], "rb") as fh:
     names, op, pv, proc = pickle.load(fh)
-from bench.plant_scale import gateway_windows, time_step
+from bench.speed.plant_scale import gateway_windows, time_step
 from gateway.config import PlantSettings
 seconds, groups, changed = time_step(gateway_windows(names, op, pv, proc), PlantSettings())
 print(json.dumps([seconds, groups, changed]))
@@ -129,7 +129,7 @@ print(json.dumps([seconds, groups, changed]))
 def baseline_step(tree: Path, data: Path) -> tuple[float, int, int]:
     """The baseline's plant step on the same windows, in a subprocess (its packages first
     on the path; this bench's helpers build its loop group with its own classes)."""
-    env = {**os.environ, "PYTHONPATH": f"{tree}{os.pathsep}{Path(__file__).parents[1]}",
+    env = {**os.environ, "PYTHONPATH": f"{tree}{os.pathsep}{Path(__file__).parents[2]}",
            "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     out = subprocess.run([sys.executable, "-c", _CHILD, str(tree), str(data)], env=env,
                          capture_output=True, text=True, check=True).stdout

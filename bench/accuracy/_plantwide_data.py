@@ -21,7 +21,7 @@ from stiction.scenarios import plant as plant_module
 from stiction.scenarios.plant import PlantRecord, simulate_plants
 from stiction.scenarios.plants import plant_scenarios
 
-CACHE = Path(os.environ.get("PLANTWIDE_CACHE", Path(__file__).resolve().parent / ".cache"))
+CACHE = Path(os.environ.get("PLANTWIDE_CACHE", Path(__file__).resolve().parents[1] / ".cache"))
 DURATION, SAMPLE = 14400.0, 1
 VIEWS = ("1", "4", "20", "60", "20h")
 """The views, by sample time in s: the simulation's own 1 s, the gateway's polling at 4 s and

@@ -1,6 +1,6 @@
 """Before and after in one run: the gateway of a baseline commit and the gateway of this tree
 side by side, each as its own ``stiction-gateway run`` process polling the same simulated
-PLC of 2,000 loops at 1 s, under the same attack (bench/_attacks.py).
+PLC of 2,000 loops at 1 s, under the same attack (bench/attacks/_attacks.py).
 
 :func:`baseline_tree` extracts ``gateway/``, ``plcsim/`` and ``stiction/`` of the baseline
 commit (``BENCH_BASELINE``, default :data:`BASELINE`: main when issue 22 was filed) with
@@ -34,10 +34,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from bench._attacks import Scada, attack_process, scrape
 from bench._net import free_port, wait_port
+from bench.attacks._attacks import Scada, attack_process, scrape
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 BASELINE = "cc81e67"  # main when issue 22 was filed
 LOOPS = 2000
 UNIT = REPO / "deploy" / "systemd" / "stiction-gateway.service"

@@ -29,7 +29,7 @@ from gateway.runtime.gateway import Gateway
 from plcsim import parse_sim_config
 from plcsim.sim import PlcSim
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "onboarding.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "onboarding.md"
 TIME_SCALE = float(os.environ.get("BENCH_ONBOARDING_SCALE", "60"))
 HOURS = float(os.environ.get("BENCH_ONBOARDING_HOURS", "2.2"))
 BLOCK = re.compile(r"^```\w+ file=(\S+)\n(.*?)^```", re.M | re.S)

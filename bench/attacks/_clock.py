@@ -1,6 +1,6 @@
 """A wall clock stepped back across restarts (issue 31, finding 1), as real processes: the
 scenario ``tests/e2e/test_clock_step.py`` checks on this tree and ``python -m bench
-hostile`` runs on the baseline and this tree side by side (bench/_hostile31.py).
+hostile`` runs on the baseline and this tree side by side (bench/attacks/_clock_windows_storm.py).
 
 ``stiction-gateway run`` of a tree polls a memory device every 0.1 s, analyses every 0.4 s
 and writes its state every 2 s. Run 1 is on time and stops cleanly; 1 s later run 2 starts
@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from bench._arena import start_gateway, stop_gateway, wait_ready
-from bench._attacks import read_frame
 from bench._net import free_port, wait_port
+from bench.attacks._arena import start_gateway, stop_gateway, wait_ready
+from bench.attacks._attacks import read_frame
 
 POLL_S = 0.1
 PERSIST_S = 2.0

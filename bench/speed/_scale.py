@@ -1,8 +1,8 @@
 """Machinery of the scale benchmarks: simulated PLCs and the gateway as separate processes.
 
-:func:`run_scale` starts N simulated PLCs (``python -m bench._scale sim CONFIG``, each a
+:func:`run_scale` starts N simulated PLCs (``python -m bench.speed._scale sim CONFIG``, each a
 :class:`plcsim.sim.PlcSim` serving its share of M loops on 127.0.0.1) and one gateway
-(``python -m bench._scale gateway SPEC``, a real :class:`gateway.runtime.gateway.Gateway`
+(``python -m bench.speed._scale gateway SPEC``, a real :class:`gateway.runtime.gateway.Gateway`
 polling all of them), lets the gateway poll for ``duration`` seconds and collects what each
 child measured about itself: the gateway its own CPU time (``time.process_time``, all its
 threads, not its analysis workers), RSS, poll start times and the samples in its windows; each
@@ -340,14 +340,14 @@ def _read_json_line(proc: subprocess.Popen[str], what: str) -> dict[str, Any]:
 
 
 def _child(args: list[str], log: Any, tree: Path | None = None) -> subprocess.Popen[str]:
-    """``python -m bench._scale ARGS``; with ``tree`` (a baseline's packages, see
-    bench/_arena.py) its ``gateway``, ``plcsim`` and ``stiction`` are imported, not this
+    """``python -m bench.speed._scale ARGS``; with ``tree`` (a baseline's packages, see
+    bench/attacks/_arena.py) its ``gateway``, ``plcsim`` and ``stiction`` are imported, not this
     repository's (only ``bench`` comes from here)."""
-    repo = Path(__file__).resolve().parent.parent
+    repo = Path(__file__).resolve().parents[2]
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     if tree is not None:
         env["PYTHONPATH"] = os.pathsep.join((str(tree), str(repo)))
-    return subprocess.Popen([sys.executable, "-m", "bench._scale", *args],
+    return subprocess.Popen([sys.executable, "-m", "bench.speed._scale", *args],
                             stdout=subprocess.PIPE, stderr=log, text=True, env=env,
                             cwd=tree or repo)
 

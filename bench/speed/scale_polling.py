@@ -1,9 +1,9 @@
 """Benchmark (issue 8, item 1): polling M = 100, 1,000, 10,000 loops at 1 s from N simulated
-PLCs, each PLC and the gateway in its own process (see bench/_scale.py for what is measured
+PLCs, each PLC and the gateway in its own process (see bench/speed/_scale.py for what is measured
 and how).
 
 Full run (the default, ``make bench``): 10,000 loops from 20 PLCs for 300 s, the smaller sizes
-for 60 s. ``BENCH_QUICK=1`` (or ``python -m bench.scale_polling --quick``) runs 20 s each;
+for 60 s. ``BENCH_QUICK=1`` (or ``python -m bench.speed.scale_polling --quick``) runs 20 s each;
 ``BENCH_SCALE_SECONDS=S`` sets every duration.
 
 A second table checks that one simulated PLC can serve 10,000 loops in real time: the
@@ -25,7 +25,7 @@ import time
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
-from bench._scale import SCENARIO_MIX, ScaleResult, default_plcs, run_scale
+from bench.speed._scale import SCENARIO_MIX, ScaleResult, default_plcs, run_scale
 from plcsim import PlcSim, parse_sim_config
 
 SIZES = (100, 1000, 10000)

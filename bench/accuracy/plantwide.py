@@ -2,7 +2,7 @@
 
 Data (each analysed as the gateway would: every loop's window with ``stiction.analyze``,
 the process type given, then ``stiction.plant.analyze_plant`` over all of them;
-bench/_plantwide_data.py):
+bench/accuracy/_plantwide_data.py):
 
 - **own plants** (:mod:`stiction.scenarios.plants`): ``sticky`` (a sticky valve feeding 2-6
   loops), ``cascade`` (the sticky valve in the inner loop of a declared cascade), ``two``
@@ -10,7 +10,7 @@ bench/_plantwide_data.py):
   (an aggressively tuned loop feeding others), ``quiet`` (loads only); 4 h simulated at 1 s
   and seen at 1 s, at the gateway's 4 s and as a historian exports them (20 and 60 s; and
   at 20 s as a historian stores them: indicators through a 30 s transmitter lag, every
-  signal compressed and quantised, :func:`bench._plantwide_data.historian`).
+  signal compressed and quantised, :func:`bench.accuracy._plantwide_data.historian`).
   Development seeds (the thresholds of stiction.plant were set on them) and held-out
   seeds, reported apart. A sticky valve counts for "named" when its cycle is resolved
   (at least ``RESOLVED`` samples a period: at 60 s a two-minute cycle is not, and is
@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 from scipy import signal as sp_signal
 
-from bench._plantwide_data import (
+from bench.accuracy._plantwide_data import (
     DEADBAND,
     QUANTUM,
     SENSOR_TAU,

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench._arena import baseline_tree
+from bench.attacks._arena import baseline_tree
 from stiction.scenarios.plant import simulate_plants
 from stiction.scenarios.plants import PLANT_KINDS, plant_scenarios
 
@@ -118,7 +118,7 @@ def _seconds(r: dict[str, object], cap: float | None = None) -> str:
 def main() -> None:
     quick = bool(os.environ.get("BENCH_QUICK")) or "--quick" in sys.argv[1:]
     HERE.mkdir(parents=True, exist_ok=True)
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     worst = 0.0
     with baseline_tree(os.environ.get("BENCH_BASELINE", BASELINE)) as (commit, old):
         print(f"\nstiction plant: wide exports of three-decimal numbers ({ROWS} rows), "

@@ -13,7 +13,7 @@ Windows are simulated with stiction's LoopBank, loop i running scenario
    workers = cores - 1): loops analysed per second for a bank of K loops per window length
    (this tree).
 3. End to end: one full analysis round of 10,000 two-hour windows inside a gateway that
-   keeps polling 10,000 loops from 20 simulated PLCs (separate processes, bench/_scale.py),
+   keeps polling 10,000 loops from 20 simulated PLCs (separate processes, bench/speed/_scale.py),
    with the poll jitter of the ticks during the round: the baseline's gateway, then this
    tree's (target: the round at most 120 s on one core, issue 28).
 
@@ -33,9 +33,9 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from bench._arena import baseline_tree
 from bench._baseline import ALIAS, BASELINE, baseline_stiction
-from bench._scale import SCENARIO_MIX, ScaleResult, percentile, run_scale
+from bench.attacks._arena import baseline_tree
+from bench.speed._scale import SCENARIO_MIX, ScaleResult, percentile, run_scale
 from gateway.config import LoopConfig, PointConfig
 from gateway.core.jobs import LoopJob, analyze_batch
 from gateway.core.points import Quality

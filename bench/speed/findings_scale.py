@@ -5,8 +5,8 @@ under its 8 MiB bound), each loop getting its first verdict in the first analysi
 (every loop sticky: a stand-in analysis in a worker process), then two more rounds: the
 longest the event loop stalled and the poll ticks missed, for the baseline commit
 (``BENCH_BASELINE``, default :data:`BASELINE`: main when issue 38 was filed; its packages
-extracted from git, :func:`bench._arena.baseline_tree`) and for this tree, side by side in
-one run (each in a process of its own: ``bench/_findings_arena.py``). On 5c94178 the
+extracted from git, :func:`bench.attacks._arena.baseline_tree`) and for this tree, side by side in
+one run (each in a process of its own: ``bench/speed/_findings_arena.py``). On 5c94178 the
 findings view was rebuilt whole, in the event loop, for each loop's first verdict: 6,000
 findings stalled it 10 s, 20,000 past ``WatchdogSec=30``. Target: no stall beyond a poll
 interval (0.1 s), no missed tick. ``BENCH_QUICK=1``: 6,000 findings.
@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench._arena import REPO, baseline_tree
+from bench.attacks._arena import REPO, baseline_tree
 
 BASELINE = "5c94178"  # main when issue 38 was filed
 LOOPS = 2000

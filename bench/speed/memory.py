@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-from bench._scale import default_plcs, gateway_config, rss_bytes, sim_config
+from bench.speed._scale import default_plcs, gateway_config, rss_bytes, sim_config
 from gateway.runtime.gateway import Gateway
 
 SIZES = (100, 1000, 10000)
@@ -58,9 +58,9 @@ async def _child(loops: int, window_s: float) -> dict[str, float]:
 
 
 def measure(loops: int, window_s: float = WINDOW_S) -> dict[str, float]:
-    out = subprocess.run([sys.executable, "-m", "bench.memory", "--child", str(loops),
+    out = subprocess.run([sys.executable, "-m", "bench.speed.memory", "--child", str(loops),
                           str(window_s)], capture_output=True, text=True, check=True,
-                         cwd=Path(__file__).resolve().parent.parent)
+                         cwd=Path(__file__).resolve().parents[2])
     return dict(json.loads(out.stdout.strip().splitlines()[-1]))
 
 

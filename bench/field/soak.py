@@ -17,7 +17,7 @@ being longer than the run - is the record of what was received:
   gateway's exit status, watchdog pings, errors in its log;
 * RSS of the gateway process (and of its analysis workers) at start, during and at the end.
 
-``python -m bench.soak --minutes 1`` gives a quick run.
+``python -m bench.field.soak --minutes 1`` gives a quick run.
 """
 
 from __future__ import annotations
@@ -172,7 +172,8 @@ def gaps(t: np.ndarray, good_rows: np.ndarray) -> list[tuple[float, float, int]]
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m bench.soak", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m bench.field.soak",
+                                 description=__doc__.split("\n")[0])
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--loops", type=int, default=1000)
     ap.add_argument("--kill-every", type=float, default=75.0)
