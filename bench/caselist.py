@@ -32,19 +32,26 @@ HERE = Path(__file__).resolve().parent / "_caselist"
 TIMEOUT_S = 300.0
 
 
+def _path(tree: Path) -> str:
+    """The case files' ``PYTHONPATH``: the tree under test first, then the cases' folder (for
+    ``_case``). The files run with ``-P``: their own folder is not put first, where a case
+    file's name (``gateway.py``) would stand for the package under test."""
+    return f"{tree}{os.pathsep}{HERE}"
+
+
 def _names(path: Path) -> list[tuple[str, str, str]]:
     """``(name, issue, finding)`` of every case in one file, in file order."""
-    out = subprocess.run([sys.executable, str(path), "--list"], capture_output=True,
-                         text=True, check=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    out = subprocess.run([sys.executable, "-P", str(path), "--list"], capture_output=True,
+                         text=True, check=True, env={**os.environ, "PYTHONPATH": _path(REPO)})
     return [tuple(json.loads(line)) for line in out.stdout.splitlines() if line.strip()]
 
 
 def run_case(path: Path, name: str, tree: Path) -> dict[str, object]:
     """One case on one tree: its JSON line, or what went wrong."""
-    env = {**os.environ, "PYTHONPATH": str(tree), "BENCH_CASE_TREE": str(tree)}
+    env = {**os.environ, "PYTHONPATH": _path(tree), "BENCH_CASE_TREE": str(tree)}
     t0 = time.perf_counter()
     try:
-        out = subprocess.run([sys.executable, str(path), name], check=False,
+        out = subprocess.run([sys.executable, "-P", str(path), name], check=False,
                              capture_output=True, text=True, env=env, cwd=tree, timeout=TIMEOUT_S)
     except subprocess.TimeoutExpired:
         return {"said": f"no answer in {TIMEOUT_S:.0f} s", "ok": False, "s": TIMEOUT_S}
