@@ -11,7 +11,8 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 
-USAGE = "usage: python -m lab {corpus | train [--write] | calibrate [--write]}"
+USAGE = ("usage: python -m lab {corpus | train [--write] | calibrate [--write] | "
+         "shape-corpus [--chunks N]}")
 
 
 def corpus(argv: Sequence[str] = ()) -> None:
@@ -67,8 +68,15 @@ def calibrate(argv: Sequence[str] = ()) -> None:
         print(f"  wrote {WEIGHTS_FILE}")
 
 
+def shape_corpus(argv: Sequence[str] = ()) -> None:
+    """Build the shape network's corpus (lab/shape/corpus.py), then print what is built."""
+    from .shape import corpus as shape
+
+    shape.main(argv)
+
+
 COMMANDS: dict[str, Callable[[Sequence[str]], None]] = {
-    "corpus": corpus, "train": train, "calibrate": calibrate}
+    "corpus": corpus, "train": train, "calibrate": calibrate, "shape-corpus": shape_corpus}
 
 
 def main(argv: Sequence[str]) -> int:
