@@ -19,7 +19,7 @@ from .. import _cache
 from .simulate import PAIRS, Example, chunk
 
 VERSION = "v1"
-TRAIN = range(0, 400)
+TRAIN = range(0, 250)
 HELD_OUT = range(1000, 1030)
 
 
