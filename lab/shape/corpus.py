@@ -18,7 +18,7 @@ import numpy as np
 from .. import _cache
 from .simulate import PAIRS, Example, chunk
 
-VERSION = "v1"
+VERSION = "v2"
 TRAIN = range(0, 250)
 HELD_OUT = range(1000, 1030)
 

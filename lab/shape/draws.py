@@ -10,7 +10,8 @@ The ranges (lab/shape/README.md says why):
   integrating (30 %), closed-loop horizon 20-2000 steps, dead time 0-20 % of it; zero to two
   more lags of 5-50 % of tau (second and third order);
 - **tuning** (SIMC, Skogestad 2003, on the first-order-plus-dead-time equivalent, then):
-  ``normal`` (kc and ti each times 0.6-1.6), ``sluggish`` (kc times 0.15-0.5),
+  ``normal`` (kc times 0.6-1.6, ti times 0.6-4), ``sluggish`` (kc times 0.1-0.5, ti times
+  1-5: slow integral action gives the slow stick-slip cycles of real flow loops),
   ``aggressive`` (kc at 55-90 % of the ultimate gain: tuning-driven cycles),
   ``short-ti`` (ti 3-15 % of its SIMC value); kc never above 90 % of the ultimate gain;
 - **valve**: He 2007 (K = 1), He and Wang 2014 (K 1-2), Choudhury 2005, Kano 2004, or the
@@ -40,7 +41,7 @@ SEED_BASE = 36
 STEPS = 24_000  # simulated steps kept per loop (the window is cut from them)
 WARM = 3_000  # steps simulated before that
 VALVES = ("he", "he-k", "choudhury", "kano", "physical")
-TUNINGS = ("normal", "normal", "normal", "sluggish", "aggressive", "short-ti")
+TUNINGS = ("normal", "normal", "normal", "sluggish", "sluggish", "aggressive", "short-ti")
 PERIODIC = ("sine", "square", "sawtooth", "two-tone")
 INTERVALS = (1, 2, 5, 10, 10, 15, 30, 60)
 
@@ -142,9 +143,9 @@ def _tune(loop: Loop, rng: np.random.Generator) -> None:
         kc = loop.tau / (loop.kp * (lam + theta))
         ti = min(loop.tau, 4.0 * (lam + theta))
     if loop.tuning == "normal":
-        kc, ti = kc * loguniform(rng, 0.6, 1.6), ti * loguniform(rng, 0.6, 1.6)
+        kc, ti = kc * loguniform(rng, 0.6, 1.6), ti * loguniform(rng, 0.6, 4.0)
     elif loop.tuning == "sluggish":
-        kc = kc * loguniform(rng, 0.15, 0.5)
+        kc, ti = kc * loguniform(rng, 0.1, 0.5), ti * loguniform(rng, 1.0, 5.0)
     elif loop.tuning == "short-ti":
         ti = ti * loguniform(rng, 0.03, 0.15)
     ku = ultimate_gain(loop, ti)
