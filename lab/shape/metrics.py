@@ -67,13 +67,13 @@ def reliability(score: np.ndarray, y: np.ndarray, bands: Sequence[float] = BANDS
 
 
 def threshold_for_precision(score: np.ndarray, y: np.ndarray, precision: float) -> float:
-    """The lowest threshold at which the calls are at least ``precision`` right."""
-    s, yy = np.asarray(score), np.asarray(y, bool)
-    order = np.argsort(-s)
-    right = np.cumsum(yy[order])
-    prec = right / np.arange(1, s.size + 1)
-    ok = np.flatnonzero(prec >= precision)
-    return float(s[order][ok[-1]]) if ok.size else 1.0
+    """The lowest threshold at which the calls (score >= threshold) are at least
+    ``precision`` right (1.0 when none is)."""
+    s, yy = np.asarray(score, np.float64), np.asarray(y, bool)
+    cands = np.unique(s)  # ascending
+    right = np.array([yy[s >= t].mean() for t in cands])
+    ok = np.flatnonzero(right >= precision)
+    return float(cands[ok[0]]) if ok.size else 1.0
 
 
 def sigmoid(z: np.ndarray) -> np.ndarray:

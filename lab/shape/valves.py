@@ -83,7 +83,8 @@ class LaggedValve:
                                                0.0))
 
     def initial_state(self, u0: ArrayLike) -> LaggedState:
-        s = self.inner.initial_state(u0)
+        n = np.shape(self.taus)[1]
+        s = self.inner.initial_state(np.broadcast_to(np.asarray(u0, dtype=np.float64), (n,)))
         x = self.inner.position(s)
         return LaggedState(s, np.tile(x, (np.shape(self.taus)[0], 1)))
 

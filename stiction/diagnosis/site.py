@@ -102,13 +102,16 @@ def coral(feats: FloatArray, site: SiteStats, source: SiteStats, *, prior: float
           diagonal: bool = False, eps: float = 1e-3) -> FloatArray:
     """Features (d,) or (windows, d) of a site mapped onto the source's distribution (module
     doc). The site's mean and covariance are shrunk towards the source's by ``prior``
-    windows' worth; ``eps`` times the mean variance is added to both covariances."""
+    windows' worth; ``eps`` times the mean variance is added to both covariances. A site
+without windows leaves the features as they are."""
     f = np.asarray(feats, dtype=np.float64)
+    if site.n == 0:
+        return f.copy()
     n = float(site.n)
     w = n / (n + prior)
-    mu = w * site.mean + (1.0 - w) * source.mean if site.n else source.mean
+    mu = w * site.mean + (1.0 - w) * source.mean
     c_s = source.cov
-    c_t = (site.scatter + prior * c_s) / (n + prior) if site.n else c_s
+    c_t = (site.scatter + prior * c_s) / max(n - 1.0 + prior, 1.0)
     dim = c_s.shape[0]
     ridge_s = eps * float(np.trace(c_s)) / dim * np.eye(dim)
     ridge_t = eps * float(np.trace(c_t)) / dim * np.eye(dim)
