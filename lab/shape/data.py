@@ -21,6 +21,10 @@ from .loads import FACTORY
 from .simulate import Example
 
 FACTORY_WINDOW = 751  # samples of a factory window (at 1 min): as long as a plant record
+MIN_PERIOD = 8.0
+"""A sticky run whose stick-slip cycle (twice the window's samples over its slips) spans
+fewer historian samples than this is dropped: at that sampling its cycle is a zigzag of a few
+points, no shape to see (its twin stays a negative)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,13 +83,20 @@ class Sim:
         return np.array([e.y for e in self.examples])
 
 
+def visible(e: Example) -> bool:
+    """A negative, or a positive whose stick-slip cycle spans ``MIN_PERIOD`` samples."""
+    return e.y == 0 or 2.0 * e.op.size / max(int(e.meta["slips"]), 1) >= MIN_PERIOD
+
+
 def sim(seeds: Sequence[int]) -> Sim:
+    """The built chunks of ``seeds``, without positives too fast to see (:func:`visible`)."""
     ex: list[Example] = []
     per: list[np.ndarray] = []
     for s in corpus.built(seeds):
         e, _ = corpus.read(s)
-        ex += e
-        per.append(periods(s, e))
+        keep = [visible(x) for x in e]
+        ex += [x for x, k in zip(e, keep, strict=True) if k]
+        per.append(periods(s, e)[np.array(keep, dtype=bool)])
     return Sim(ex, np.concatenate(per) if per else np.empty(0))
 
 
@@ -94,26 +105,32 @@ def _nan(p: float) -> float | None:
 
 
 def window_inputs(op: np.ndarray, pv: np.ndarray, p: float | None, cfg: Config
-                  ) -> np.ndarray:
-    """Every span of a window, as scored (stiction.diagnosis.shape.inputs)."""
+                  ) -> tuple[np.ndarray, bool]:
+    """Every span of a window as scored (stiction.diagnosis.shape.inputs, PV turned direct
+    acting), and whether the controller's sign was told."""
+    sign = shape.orientation(op, pv, p)
     return shape.inputs(op, pv, p, length=cfg.length, cycles=cfg.cycles, crops=cfg.crops,
-                        span_without_cycle=cfg.span_without_cycle)
+                        span_without_cycle=cfg.span_without_cycle, sign=sign), sign != 0
 
 
 def training_inputs(data: Sim, cfg: Config, per_window: int, seed: int) -> np.ndarray:
     """(windows, per_window, 2, length): random spans of each window (a random phase of
-    its cycle), float32."""
+    its cycle), PV turned direct acting as the whole window tells, float32."""
     rng = np.random.default_rng(seed)
     out = np.empty((len(data.examples), per_window, 2, cfg.length), dtype=np.float32)
     for i, e in enumerate(data.examples):
         n = e.op.size
-        (a, b), = shape.spans(n, _nan(data.periods[i]), cycles=cfg.cycles, crops=1,
+        p = _nan(data.periods[i])
+        sign = shape.orientation(e.op, e.pv, p)
+        if sign == 0:  # not told: either reading, as the product reads both
+            sign = float(rng.choice((-1.0, 1.0)))
+        (a, b), = shape.spans(n, p, cycles=cfg.cycles, crops=1,
                                span_without_cycle=cfg.span_without_cycle)
         for j in range(per_window):
             s = int(rng.integers(0, n - (b - a) + 1))
             out[i, j] = shape.inputs(e.op[s : s + b - a], e.pv[s : s + b - a], None,
                                      length=cfg.length, cycles=cfg.cycles, crops=1,
-                                     span_without_cycle=b - a)[0]
+                                     span_without_cycle=b - a, sign=sign)[0]
     return out
 
 

@@ -76,13 +76,17 @@ def network(models: list[Any], cfg: Config, meta: dict[str, object]) -> shape.Ne
                          cfg.crops, cfg.span_without_cycle, meta)
 
 
-def window_features(model: Any, spans: list[np.ndarray]) -> np.ndarray:
+def window_features(model: Any, windows: list[tuple[np.ndarray, bool]]) -> np.ndarray:
     """Each window's features as stiction/diagnosis/shape.py averages them: its spans
-    (each (spans, 2, length)) read with the four sign pairs."""
-    signs = torch.tensor(shape.SIGNS, dtype=torch.float32)[:, :, None]
-    sizes = [s.shape[0] * len(shape.SIGNS) for s in spans]
-    x = torch.from_numpy(np.concatenate(spans).astype(np.float32))
-    batch = (x[:, None] * signs[None]).reshape(-1, 2, x.shape[2])
+    (spans, 2, length) read as they are and mirrored, with PV's sign flipped too when the
+    controller's sign was not told."""
+    parts, sizes = [], []
+    for x, told in windows:
+        signs = np.array(shape.MIRROR if told else shape.SIGNS, dtype=np.float32)
+        parts.append((x.astype(np.float32)[:, None] * signs[None, :, :, None])
+                     .reshape(-1, 2, x.shape[2]))
+        sizes.append(parts[-1].shape[0])
+    batch = torch.from_numpy(np.concatenate(parts))
     with torch.no_grad():
         f = torch.cat([features(model, b) for b in torch.split(batch, 4096)])
     return np.stack([g.mean(dim=0).numpy() for g in torch.split(f, sizes)]).astype(np.float64)

@@ -25,14 +25,14 @@ from .data import Config
 CHOSEN = (Config(length=256, cycles=6.0, crops=4), net.Arch())
 SEEDS = (0, 1, 2, 3, 4)
 SEARCH: tuple[tuple[str, Config, net.Arch], ...] = (
-    ("C8 L128 K6", Config(128, 6.0), net.Arch((8, 8, 8, 8), hidden=8)),
-    ("C8 L256 K6", Config(256, 6.0), net.Arch((8, 8, 8, 8), hidden=8)),
-    ("C16 L128 K6", Config(128, 6.0), net.Arch()),
     ("C16 L256 K6", Config(256, 6.0), net.Arch()),
     ("C32 L256 K6", Config(256, 6.0), net.Arch((32, 32, 32, 32), hidden=32)),
+    ("C8 L256 K6", Config(256, 6.0), net.Arch((8, 8, 8, 8), hidden=8)),
+    ("C16 L128 K6", Config(128, 6.0), net.Arch()),
     ("C16 L256 K3", Config(256, 3.0), net.Arch()),
     ("C16 L256 K12", Config(256, 12.0), net.Arch()),
 )
+SEARCH_SEEDS = (0,)
 
 
 def _key(cfg: Config, arch: net.Arch, seed: int) -> str:
@@ -100,20 +100,24 @@ def rows(p: train.Prepared, s: confidence.Scored, seeds: Sequence[int]) -> list[
             *detail]
 
 
-def search(log: Any = print) -> None:
-    log("== shape network: configurations (3 seeds each; the choice uses the plant fold) ==")
-    for name, cfg, arch in SEARCH:
-        p, s = scored(cfg, arch, (0, 1, 2))
+def search(part: int = 0, parts: int = 1, log: Any = print) -> None:
+    """The configurations of SEARCH (every ``parts``-th from ``part``: two processes on two
+    cores), SEARCH_SEEDS each; the choice among them uses the plant fold."""
+    log("== shape network: configurations (the choice uses the plant fold) ==")
+    for name, cfg, arch in SEARCH[part::parts]:
+        p, s = scored(cfg, arch, SEARCH_SEEDS)
         w = net.n_weights(s.models[0])
         log(f"{name} ({w} weights, {dataclasses.asdict(cfg)}, {arch})")
-        for line in rows(p, s, (0, 1, 2))[:5]:
+        for line in rows(p, s, SEARCH_SEEDS)[: len(SEARCH_SEEDS) + 1]:
             log(line)
 
 
 def main(argv: Sequence[str] = ()) -> None:
     torch.set_num_threads(1)
     if "--search" in argv:
-        search()
+        part, _, parts = (argv[argv.index("--search") + 1] if len(argv) > argv.index("--search")
+                          + 1 else "0/1").partition("/")
+        search(int(part), int(parts or 1))
         return
     cfg, arch = CHOSEN
     t0 = time.perf_counter()

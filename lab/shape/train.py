@@ -14,12 +14,14 @@ from typing import Any
 import numpy as np
 import torch
 
+from stiction.diagnosis import shape
+
 from . import corpus, data, net
 from .data import Config, Record
 
 PER_WINDOW = 3
-EPOCHS = 16
-BATCH = 256
+EPOCHS = 24
+BATCH = 64
 LR = 3e-3
 
 
@@ -28,7 +30,7 @@ class Prepared:
     cfg: Config
     x: np.ndarray  # (windows, PER_WINDOW, 2, length) float32
     y: np.ndarray
-    sets: dict[str, list[np.ndarray]]  # evaluation set -> each window's spans
+    sets: dict[str, list[tuple[np.ndarray, bool]]]  # set -> each window's spans, sign told
     labels: dict[str, np.ndarray]  # -1: unlabelled
     groups: dict[str, list[str]]
     names: dict[str, list[str]]
@@ -70,7 +72,7 @@ def prepare(cfg: Config) -> Prepared:
 def fit(p: Prepared, arch: net.Arch, seed: int, epochs: int = EPOCHS,
         log: Any = None) -> Any:
     """One network trained on the prepared windows: balanced BCE, Adam with a cosine
-    schedule; each epoch reads one random span of every window with a random sign pair."""
+    schedule; each epoch reads one random span of every window, mirrored at random."""
     torch.set_num_threads(1)
     model = net.make(arch, seed)
     rng = np.random.default_rng(seed)
@@ -80,12 +82,12 @@ def fit(p: Prepared, arch: net.Arch, seed: int, epochs: int = EPOCHS,
     steps = epochs * math.ceil(len(y) / BATCH)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=LR, total_steps=steps)
     loss_fn = torch.nn.BCEWithLogitsLoss(pos_weight=pos_weight)
-    signs = np.array([(1.0, 1.0), (1.0, -1.0), (-1.0, -1.0), (-1.0, 1.0)], np.float32)
+    signs = np.array(shape.MIRROR, np.float32)
     t0 = time.perf_counter()
     for epoch in range(epochs):
         order = rng.permutation(len(y))
         crop = rng.integers(0, p.x.shape[1], len(y))
-        sgn = signs[rng.integers(0, 4, len(y))]
+        sgn = signs[rng.integers(0, len(signs), len(y))]
         total = 0.0
         for a in range(0, len(y), BATCH):
             idx = order[a : a + BATCH]

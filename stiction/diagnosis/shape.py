@@ -9,10 +9,14 @@ its cycle (the period from :func:`stiction.signal.cycle.find_cycle`, in samples;
 window when it holds fewer cycles, at most ``span_without_cycle`` samples when it has no
 cycle), each span resampled to ``length`` points (means over equal bins when it is longer,
 linear interpolation when shorter), each of OP and PV with its straight line removed and
-divided by its standard deviation. Each span is read four times, with the signs of OP and PV
-flipped (a reverse-acting loop, a negative process gain, a valve that closes on signal),
-and the network's penultimate features are averaged over the spans and the four readings,
-so the score does not depend on the signs and uses the whole window.
+divided by its standard deviation. PV is first turned so the loop reads as direct acting:
+multiplied by the sign of the controller's action estimated from its integral term
+(:func:`stiction.detectors.hammerstein.controller_sign`; a reverse-acting loop, a negative
+process gain, an OP in % closed all read alike). Each span is read twice, as it is and
+mirrored (OP and PV negated: the same loop upside down), four times when the controller's
+sign cannot be told (PV's sign flipped too), and the network's penultimate features are
+averaged over the spans and the readings, so the score does not depend on the signs and
+uses the whole window.
 
 The network (:class:`Network`): convolutions with ReLU, each but the last followed by a
 max-pool, then the mean and the maximum of every channel over time, a dense layer with ReLU
@@ -34,16 +38,19 @@ from pathlib import Path
 import numpy as np
 
 from .._validate import FloatArray
+from ..detectors.hammerstein import controller_sign
 from ..signal.cycle import find_cycle
 
 __all__ = ["WEIGHTS", "Member", "Network", "ShapeScore", "features", "head", "inputs",
-           "load", "score", "spans"]
+           "load", "orientation", "score", "spans"]
 
 WEIGHTS = Path(__file__).with_name("shape.npz")
 """The shipped weights (written by ``python -m lab shape --write``)."""
 
-SIGNS = ((1.0, 1.0), (1.0, -1.0), (-1.0, -1.0), (-1.0, 1.0))
-"""The four readings of a span: (sign of OP, sign of PV)."""
+MIRROR = ((1.0, 1.0), (-1.0, -1.0))
+"""The readings of a span once PV is turned direct acting: (sign of OP, sign of PV)."""
+SIGNS = ((1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0))
+"""The readings when the controller's sign cannot be told."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,13 +85,15 @@ class Network:
 class ShapeScore:
     """``score`` in [0, 1] (the sigmoid of ``logit``); ``features`` the penultimate layer
     averaged over spans and readings, one row per ensemble member; ``spans`` how many spans
-    were read, ``period`` the cycle used (samples; None: no cycle)."""
+    were read, ``period`` the cycle used (samples; None: no cycle), ``sign`` the controller's
+    action PV was multiplied by (0: not told, both signs read)."""
 
     score: float
     logit: float
     features: FloatArray
     spans: int
     period: float | None
+    sign: float
 
 
 def spans(n: int, period: float | None, *, cycles: float, crops: int,
@@ -103,9 +112,10 @@ def spans(n: int, period: float | None, *, cycles: float, crops: int,
 
 
 def _resample(x: FloatArray, length: int) -> FloatArray:
-    """``x`` at ``length`` points: the means of equal bins when longer, linear
+    """``x`` less its mean at ``length`` points: the means of equal bins when longer, linear
     interpolation when shorter."""
     n = x.size
+    x = x - x.mean()  # the mean goes at standardisation; off here, the sums keep precision
     if n >= length:
         c = np.concatenate(([0.0], np.cumsum(x)))
         edges = np.linspace(0.0, n, length + 1)
@@ -125,12 +135,22 @@ def _standardise(x: FloatArray) -> FloatArray:
     return y / sd if sd > 1e-12 * max(1.0, float(np.max(np.abs(x)))) else np.zeros_like(y)
 
 
+def orientation(op: FloatArray, pv: FloatArray, period: float | None) -> float:
+    """The sign of the controller's action (+1 direct, -1 reverse, 0 not told), over an
+    eighth of the cycle, or of a quarter of the window when it has none."""
+    n = len(op)
+    scale = period if period is not None and period > 0 else n / 4.0
+    return controller_sign(np.asarray(op, dtype=np.float64), np.asarray(pv, dtype=np.float64),
+                           scale)
+
+
 def inputs(op: FloatArray, pv: FloatArray, period: float | None, *, length: int = 256,
-           cycles: float = 6.0, crops: int = 4, span_without_cycle: int = 1024) -> FloatArray:
-    """The network's input for a window: (spans, 2, ``length``), OP then PV (module doc);
-    the four sign readings are made by :func:`features`."""
+           cycles: float = 6.0, crops: int = 4, span_without_cycle: int = 1024,
+           sign: float = 1.0) -> FloatArray:
+    """The network's input for a window: (spans, 2, ``length``), OP then PV times ``sign``
+    (module doc); the readings are made by :func:`features`."""
     op_ = np.asarray(op, dtype=np.float64)
-    pv_ = np.asarray(pv, dtype=np.float64)
+    pv_ = np.asarray(pv, dtype=np.float64) * (-1.0 if sign < 0 else 1.0)
     out = [np.stack([_standardise(_resample(x[a:b], length)) for x in (op_, pv_)])
            for a, b in spans(op_.size, period, cycles=cycles, crops=crops,
                              span_without_cycle=span_without_cycle)]
@@ -162,11 +182,13 @@ def _member_features(m: Member, x: FloatArray) -> FloatArray:
     return np.asarray(np.maximum(pooled @ w.T + b, 0.0), dtype=np.float64)
 
 
-def features(net: Network, x: FloatArray, *, average: bool = True) -> FloatArray:
-    """The penultimate features of spans ``x`` (spans, 2, length), each read with the four
-    sign pairs: (members, hidden) averaged over spans and readings, or (members, spans x 4,
+def features(net: Network, x: FloatArray, *, told: bool = True, average: bool = True
+             ) -> FloatArray:
+    """The penultimate features of spans ``x`` (spans, 2, length), each read as it is and
+    mirrored (and with PV's sign flipped unless the controller's sign was ``told``):
+    (members, hidden) averaged over spans and readings, or (members, spans x readings,
     hidden) with ``average=False``."""
-    signs = np.array(SIGNS)[:, :, None]
+    signs = np.array(MIRROR if told else SIGNS)[:, :, None]
     batch = (x[:, None] * signs[None]).reshape(-1, 2, x.shape[2])
     f = np.stack([_member_features(m, batch) for m in net.members])
     return f.mean(axis=1) if average else f
@@ -192,11 +214,12 @@ def score(op: FloatArray, pv: FloatArray, *, period: float | None = None,
     if period is None and find:
         period = find_cycle(np.asarray(op, dtype=np.float64), np.asarray(pv, dtype=np.float64),
                             integrating=integrating).period
+    sign = orientation(op, pv, period)
     x = inputs(op, pv, period, length=net.length, cycles=net.cycles, crops=net.crops,
-               span_without_cycle=net.span_without_cycle)
-    f = features(net, x)
+               span_without_cycle=net.span_without_cycle, sign=sign)
+    f = features(net, x, told=sign != 0)
     z = float(head(net, f))
-    return ShapeScore(_sigmoid(z), z, f, x.shape[0], period)
+    return ShapeScore(_sigmoid(z), z, f, x.shape[0], period, sign)
 
 
 def _arrays(d: dict[str, np.ndarray], prefix: str) -> tuple[FloatArray, FloatArray]:

@@ -119,3 +119,28 @@ def test_auc_and_calls() -> None:
     assert metrics.group_calls(s, y, ["a", "a", "b", "c", "d", "d"], 0.5) == (1, 2, 1, 2)
     assert metrics.threshold_for_precision(s, y, 0.7) == 0.3  # 3 of 4 calls right
     assert metrics.threshold_for_precision(s, y, 0.9) == 0.9  # at 0.8 the tie: 2 of 3
+
+
+# ------------------------------------------------------------ the shipped network in torch
+def test_the_shipped_network_recomputed_by_torch_equals_numpy_and_the_fixture() -> None:
+    pytest.importorskip("torch")
+    from lab.shape import data, export, net  # noqa: PLC0415 (torch: the bench extra)
+    from stiction.diagnosis import shape  # noqa: PLC0415
+
+    nw = shape.load()
+    first = nw.members[0]
+    arch = net.Arch(tuple(w.shape[0] for w, _ in first.convs),
+                    tuple(w.shape[2] for w, _ in first.convs), first.dense[0].shape[0])
+    models = [export.torch_model(m, arch) for m in nw.members]
+    cfg = data.Config(nw.length, nw.cycles, nw.crops, nw.span_without_cycle)
+    with np.load(export.FIXTURE) as d:
+        ends = np.cumsum(d["lengths"])[:-1]
+        windows = list(zip(np.split(d["op"], ends), np.split(d["pv"], ends), strict=True))
+        periods, want = d["periods"], d["scores"]
+    got_periods, z = export.torch_scores(models, cfg, windows)
+    np.testing.assert_array_equal(got_periods, periods)  # the cycles as exported
+    np.testing.assert_allclose(metrics.sigmoid(z), want, rtol=0, atol=1e-6)
+    numpy = [shape.score(o.astype(np.float64), v.astype(np.float64), period=None if
+                         np.isnan(q) else float(q), find=False).score
+             for (o, v), q in zip(windows, periods, strict=True)]
+    np.testing.assert_allclose(numpy, metrics.sigmoid(z), rtol=0, atol=1e-6)
