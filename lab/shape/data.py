@@ -21,7 +21,7 @@ from .loads import FACTORY
 from .simulate import Example
 
 FACTORY_WINDOW = 751  # samples of a factory window (at 1 min): as long as a plant record
-MIN_PERIOD = 8.0
+MIN_PERIOD = shape.MIN_PERIOD
 """A sticky run whose stick-slip cycle (twice the window's samples over its slips) spans
 fewer historian samples than this is dropped: at that sampling its cycle is a zigzag of a few
 points, no shape to see (its twin stays a negative)."""

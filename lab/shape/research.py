@@ -3,9 +3,10 @@ chosen configuration is trained on the shape corpus's training chunks (simulatio
 cached in lab/.cache/shape/models/ by configuration, seed and corpus) and scored, with the
 ensemble of the seeds, on the held-out simulated chunks, the plant records (never trained
 on) per record and per tag, and the shared Tennessee Eastman records; then the confidence
-methods (lab/shape/confidence.py) on the plant records. ``--search`` trains the grid of
-configurations (three seeds each) and prints every one's figures; ``--write`` exports the
-ensemble (lab/shape/export.py)."""
+methods (lab/shape/confidence.py) on the plant records. ``--search [i/n]`` trains the grid of
+configurations (``SEARCH_SEEDS`` each; every n-th from the i-th: processes side by side)
+and prints every one's figures; ``--seeds 1,3`` trains and scores only those seeds (the
+cache then serves the full run); ``--write`` exports the ensemble (lab/shape/export.py)."""
 
 from __future__ import annotations
 
@@ -31,6 +32,8 @@ SEARCH: tuple[tuple[str, Config, net.Arch], ...] = (
     ("C16 L128 K6", Config(128, 6.0), net.Arch()),
     ("C16 L256 K3", Config(256, 3.0), net.Arch()),
     ("C16 L256 K12", Config(256, 12.0), net.Arch()),
+    ("C16 L128 K12", Config(128, 12.0), net.Arch()),
+    ("C32 L128 K12", Config(128, 12.0), net.Arch((32, 32, 32, 32), hidden=32)),
 )
 SEARCH_SEEDS = (0,)
 
@@ -120,14 +123,17 @@ def main(argv: Sequence[str] = ()) -> None:
         search(int(part), int(parts or 1))
         return
     cfg, arch = CHOSEN
+    seeds: tuple[int, ...] = SEEDS
+    if "--seeds" in argv:  # train (and cache) these only: seeds in parallel processes
+        seeds = tuple(int(x) for x in argv[argv.index("--seeds") + 1].split(","))
     t0 = time.perf_counter()
-    p, s = scored(cfg, arch, SEEDS, log=print)
+    p, s = scored(cfg, arch, seeds, log=print)
     n_train = len(p.y)
     print(f"== shape network: trained on {n_train} simulated windows "
           f"({int(p.y.sum())} sticky; {len(corpus.built(corpus.TRAIN))} chunks), "
           f"{net.n_weights(s.models[0])} weights a seed; held out: {len(p.labels['sim'])} "
           f"simulated, 80 plant records, 58 TEP-shared ({time.perf_counter() - t0:.0f} s) ==")
-    for line in rows(p, s, SEEDS):
+    for line in rows(p, s, seeds):
         print(line)
     y = p.labels
     print("== confidence on the plant records (threshold chosen on simulation alone) ==")

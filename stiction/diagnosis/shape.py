@@ -51,6 +51,10 @@ MIRROR = ((1.0, 1.0), (-1.0, -1.0))
 """The readings of a span once PV is turned direct acting: (sign of OP, sign of PV)."""
 SIGNS = ((1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0))
 """The readings when the controller's sign cannot be told."""
+MIN_PERIOD = 8.0
+"""A cycle of fewer samples is a zigzag of a few points: no shape to read. The network was
+trained with such sticky windows left out (lab/shape/data.py), so its score there says
+nothing either way (:attr:`ShapeScore.readable` is False)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,6 +66,13 @@ class Member:
     convs: tuple[tuple[FloatArray, FloatArray], ...]
     dense: tuple[FloatArray, FloatArray]
     last: tuple[FloatArray, FloatArray]
+    columns: tuple[FloatArray, ...] = dataclasses.field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # each convolution's weight as (kernel x in, out): one product per layer
+        object.__setattr__(self, "columns", tuple(
+            np.ascontiguousarray(np.transpose(w, (2, 1, 0)).reshape(-1, w.shape[0]))
+            for w, _ in self.convs))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,6 +105,11 @@ class ShapeScore:
     spans: int
     period: float | None
     sign: float
+
+    @property
+    def readable(self) -> bool:
+        """False when the cycle is shorter than :data:`MIN_PERIOD` samples."""
+        return self.period is None or self.period >= MIN_PERIOD
 
 
 def spans(n: int, period: float | None, *, cycles: float, crops: int,
@@ -157,23 +173,23 @@ def inputs(op: FloatArray, pv: FloatArray, period: float | None, *, length: int 
     return np.stack(out)
 
 
-def _conv(x: FloatArray, w: FloatArray, b: FloatArray) -> FloatArray:
+def _conv(x: FloatArray, wk: FloatArray, b: FloatArray) -> FloatArray:
     """Zero-padded ('same') 1-D convolution as PyTorch computes it (a cross-correlation):
-    ``x`` (batch, time, in), ``w`` (out, in, kernel) -> (batch, time, out)."""
-    k = w.shape[2]
+    ``x`` (batch, time, in), ``wk`` (kernel x in, out: :attr:`Member.columns`) -> (batch,
+    time, out)."""
     b_, t, c = x.shape
+    k = wk.shape[0] // c
     xp = np.zeros((b_, t + k - 1, c))
     xp[:, k // 2 : k // 2 + t] = x
     cols = np.concatenate([xp[:, j : j + t] for j in range(k)], axis=2)  # (batch, time, k x in)
-    wk = np.transpose(w, (2, 1, 0)).reshape(k * c, w.shape[0])
     return np.asarray(cols @ wk + b, dtype=np.float64)
 
 
 def _member_features(m: Member, x: FloatArray) -> FloatArray:
     """Penultimate features of ``x`` (batch, 2, length) -> (batch, hidden)."""
     h = np.transpose(x, (0, 2, 1))
-    for i, (w, b) in enumerate(m.convs):
-        h = np.maximum(_conv(h, w, b), 0.0)
+    for i, (wk, (_, b)) in enumerate(zip(m.columns, m.convs, strict=True)):
+        h = np.maximum(_conv(h, wk, b), 0.0)
         if i < len(m.convs) - 1:
             t = h.shape[1] // 2 * 2
             h = h[:, :t].reshape(h.shape[0], t // 2, 2, h.shape[2]).max(axis=2)
