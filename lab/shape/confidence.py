@@ -16,6 +16,10 @@ Methods (stiction/diagnosis/site.py implements them in numpy):
 - ``em``: Platt, then the site's share of sticky windows by EM (Saerens et al. 2002) on
   the scored batch;
 - ``coral-batch+em``: both;
+- ``coral-batch@em``: the site's share of sticky windows by EM first, then CORAL towards
+  the simulation's features mixed at that share (sticky and good windows' statistics
+  apart, stiction/diagnosis/site.py ``mixture``), so the site's many or few sticky valves
+  are not aligned away; ``std-batch@em`` the same per feature;
 - ``band``: an abstention band on the Platt score: ``stiction`` from the 90 %-precise
   threshold, ``no_stiction`` below the highest score under which at most 5 % of the
   simulated windows are sticky, ``undetermined`` between.
@@ -67,10 +71,18 @@ def fit_platt(z: np.ndarray, y: np.ndarray, iterations: int = 50) -> tuple[float
     return a, b
 
 
-def _aligner(s: Scored, target: str, diagonal: bool, test: str
+def _aligner(s: Scored, target: str, diagonal: bool, test: str, *,
+             share: float | None = None, ys: np.ndarray | None = None
              ) -> Callable[[int, np.ndarray], np.ndarray]:
+    """CORAL of member ``i``'s features towards the simulated ones (mixed at ``share`` of
+    sticky windows when given: ``ys`` the simulated labels)."""
     def align(i: int, f: np.ndarray) -> np.ndarray:
-        src = site.SiteStats.of(s.feats[i]["sim"])
+        sim = s.feats[i]["sim"]
+        if share is None or ys is None:
+            src = site.SiteStats.of(sim)
+        else:
+            src = site.mixture(site.SiteStats.of(sim[ys == 1]), site.SiteStats.of(sim[ys == 0]),
+                               share)
         tgt = site.SiteStats.of(s.feats[i][test if target == "batch" else target])
         return site.coral(f, tgt, src, diagonal=diagonal)
     return align
@@ -122,6 +134,9 @@ def methods(s: Scored, test: str, y: np.ndarray, ys: np.ndarray) -> list[Outcome
     al = _aligner(s, "batch", False, test)
     em2, share2 = site.label_shift(site.platt(s.logits(test, al), a, b), prior)
     add("coral-batch+em", em2, cal_sim, est=share2)
+    for diagonal, label in ((False, "coral"), (True, "std")):
+        al = _aligner(s, "batch", diagonal, test, share=share, ys=ys)
+        add(f"{label}-batch@em", site.platt(s.logits(test, al), a, b), cal_sim, est=share)
     lo = _low_band(cal_sim, ys)
     add("band", cal, cal_sim, band=lo)
     return out
@@ -157,4 +172,4 @@ def table(outcomes: Sequence[Outcome], sim_rel: list[tuple[float, float, int, fl
     return lines
 
 
-SHOWN = ("raw", "platt", "coral-batch", "std-batch", "em", "coral-batch+em")
+SHOWN = ("platt", "coral-batch", "em", "coral-batch@em", "std-batch@em")

@@ -6,6 +6,7 @@ to 150-600 samples, stored as float16) with their cycles and PyTorch's logits an
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -60,13 +61,10 @@ def write(p: train.Prepared, s: confidence.Scored, platt: tuple[float, float]) -
             cal, ys, confidence.PRECISION), "band_low": confidence._low_band(cal, ys),
         "sim_prior": float(ys.mean()), "trained_windows": len(p.y),
         "trained_sticky": int(p.y.sum())}
-    nw = net.network(s.models, p.cfg, meta)
+    sources = tuple((site.SiteStats.of(f["sim"][ys == 1]), site.SiteStats.of(f["sim"][ys == 0]))
+                    for f in s.feats)
+    nw = dataclasses.replace(net.network(s.models, p.cfg, meta), sources=sources)
     arrays = shape.to_arrays(nw)
-    for i, f in enumerate(s.feats):
-        src = site.SiteStats.of(f["sim"])
-        arrays[f"m{i}.source.mean"] = src.mean
-        arrays[f"m{i}.source.scatter"] = src.scatter
-        arrays[f"m{i}.source.n"] = np.array(src.n)
     save: Any = np.savez_compressed  # its stubs type **kwds against allow_pickle
     save(shape.WEIGHTS, **arrays)
     print(f"wrote {shape.WEIGHTS} ({shape.WEIGHTS.stat().st_size} bytes, {nw.n_weights} "

@@ -40,6 +40,7 @@ import numpy as np
 from .._validate import FloatArray
 from ..detectors.hammerstein import controller_sign
 from ..signal.cycle import find_cycle
+from .site import SiteStats
 
 __all__ = ["WEIGHTS", "Member", "Network", "ShapeScore", "features", "head", "inputs",
            "load", "orientation", "score", "spans"]
@@ -85,6 +86,9 @@ class Network:
     crops: int = 4
     span_without_cycle: int = 1024
     meta: dict[str, object] = dataclasses.field(default_factory=dict)
+    sources: tuple[tuple[SiteStats, SiteStats], ...] = ()
+    """Per member, the statistics of its features on held-out simulated windows, sticky and
+    good apart: the source of the site alignment (:mod:`.site`)."""
 
     @property
     def n_weights(self) -> int:
@@ -245,15 +249,24 @@ def _arrays(d: dict[str, np.ndarray], prefix: str) -> tuple[FloatArray, FloatArr
 
 def from_arrays(arrays: dict[str, np.ndarray]) -> Network:
     """A network from the arrays of its weights file: ``config`` (JSON: ``length``,
-    ``cycles``, ``crops``, ``span_without_cycle``, ``members``, ``convs``, ``meta``) and
-    ``m{i}.conv{j}.weight``/``.bias``, ``m{i}.dense.*``, ``m{i}.last.*``."""
+    ``cycles``, ``crops``, ``span_without_cycle``, ``members``, ``convs``, ``meta``),
+    ``m{i}.conv{j}.weight``/``.bias``, ``m{i}.dense.*``, ``m{i}.last.*`` and the source
+    statistics ``m{i}.sticky.n``/``.mean``/``.scatter``, ``m{i}.good.*``."""
     cfg = json.loads(str(arrays["config"]))
+    count = int(cfg["members"])
     members = tuple(
         Member(tuple(_arrays(arrays, f"m{i}.conv{j}") for j in range(int(cfg["convs"]))),
                _arrays(arrays, f"m{i}.dense"), _arrays(arrays, f"m{i}.last"))
-        for i in range(int(cfg["members"])))
+        for i in range(count))
+    sources = tuple(
+        tuple(SiteStats(int(arrays[f"m{i}.{k}.n"]),
+                        np.asarray(arrays[f"m{i}.{k}.mean"], dtype=np.float64),
+                        np.asarray(arrays[f"m{i}.{k}.scatter"], dtype=np.float64))
+              for k in ("sticky", "good"))
+        for i in range(count) if f"m{i}.sticky.n" in arrays)
     return Network(members, int(cfg["length"]), float(cfg["cycles"]), int(cfg["crops"]),
-                   int(cfg["span_without_cycle"]), dict(cfg.get("meta", {})))
+                   int(cfg["span_without_cycle"]), dict(cfg.get("meta", {})),
+                   tuple((a, b) for a, b in sources))
 
 
 def to_arrays(net: Network) -> dict[str, np.ndarray]:
@@ -269,6 +282,11 @@ def to_arrays(net: Network) -> dict[str, np.ndarray]:
         for name, (w, b) in named:
             out[f"m{i}.{name}.weight"] = np.asarray(w, dtype=np.float32)
             out[f"m{i}.{name}.bias"] = np.asarray(b, dtype=np.float32)
+    for i, pair in enumerate(net.sources):
+        for k, st in zip(("sticky", "good"), pair, strict=True):
+            out[f"m{i}.{k}.n"] = np.array(st.n)
+            out[f"m{i}.{k}.mean"] = st.mean
+            out[f"m{i}.{k}.scatter"] = st.scatter
     return out
 
 

@@ -19,6 +19,10 @@ are a free sample of that shift:
   SDs only (per-site standardisation).
 - :func:`label_shift` re-estimates the share of sticky windows at the site by EM (Saerens,
   Latinne and Decaestecker 2002) and rescales calibrated posteriors to it.
+- :func:`mixture` gives the simulation's statistics at a site's share of sticky windows
+  (from the sticky and the good windows' statistics apart): a site with many sticky valves
+  moves its features by that too, and aligning it to the simulation's own share (a few
+  sticky windows in five) would take the sticky ones' features away with the shift.
 - :func:`platt` maps a logit to a probability with a scale and an offset fitted on
   held-out simulation (temperature when the offset is 0).
 """
@@ -32,7 +36,7 @@ import numpy as np
 
 from .._validate import FloatArray
 
-__all__ = ["SiteStats", "coral", "label_shift", "platt"]
+__all__ = ["SiteStats", "coral", "label_shift", "mixture", "platt"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,6 +93,18 @@ class SiteStats:
                 scatter.shape != (mean.size, mean.size) or not np.all(np.isfinite(scatter)):
             raise ValueError("site statistics: n a count, mean (d,), scatter (d, d), finite")
         return cls(n, mean, scatter)
+
+
+def mixture(sticky: SiteStats, good: SiteStats, share: float) -> SiteStats:
+    """The statistics of windows of which ``share`` are drawn like ``sticky`` and the rest
+    like ``good`` (their means and covariances mixed; counted as both together)."""
+    if not 0.0 <= share <= 1.0:
+        raise ValueError(f"share must lie in [0, 1], was {share!r}")
+    d = sticky.mean - good.mean
+    mean = share * sticky.mean + (1.0 - share) * good.mean
+    cov = share * sticky.cov + (1.0 - share) * good.cov + share * (1.0 - share) * np.outer(d, d)
+    n = sticky.n + good.n
+    return SiteStats(n, mean, cov * max(n - 1, 1))
 
 
 def _sqrt(c: FloatArray, inverse: bool) -> FloatArray:
