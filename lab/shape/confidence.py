@@ -14,7 +14,7 @@ Methods (stiction/diagnosis/site.py implements them in numpy):
   targets: ``batch`` (the scored records themselves, unlabelled: a batch of files or a
   gateway's loops), ``factory`` (another plant's loops: the two unlabelled factory loops);
 - ``em``: Platt, then the site's share of sticky windows by EM (Saerens et al. 2002) on
-  the scored batch;
+  the scored batch (the simulation's share counted as ``site.PRIOR_WEIGHT`` windows);
 - ``coral-batch+em``: both;
 - ``coral-batch@em``: the site's share of sticky windows by EM first, then CORAL towards
   the simulation's features mixed at that share (sticky and good windows' statistics
@@ -129,10 +129,11 @@ def methods(s: Scored, test: str, y: np.ndarray, ys: np.ndarray) -> list[Outcome
         for diagonal, label in ((False, "coral"), (True, "std")):
             al = _aligner(s, target, diagonal, test)
             add(f"{label}-{target}", site.platt(s.logits(test, al), a, b), cal_sim)
-    em, share = site.label_shift(cal, prior)
+    em, share = site.label_shift(cal, prior, prior_weight=site.PRIOR_WEIGHT)
     add("em", em, cal_sim, est=share)
     al = _aligner(s, "batch", False, test)
-    em2, share2 = site.label_shift(site.platt(s.logits(test, al), a, b), prior)
+    em2, share2 = site.label_shift(site.platt(s.logits(test, al), a, b), prior,
+                                   prior_weight=site.PRIOR_WEIGHT)
     add("coral-batch+em", em2, cal_sim, est=share2)
     for diagonal, label in ((False, "coral"), (True, "std")):
         al = _aligner(s, "batch", diagonal, test, share=share, ys=ys)

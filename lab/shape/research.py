@@ -20,10 +20,10 @@ import numpy as np
 import torch
 
 from .. import _cache
-from . import confidence, corpus, export, metrics, net, train
+from . import confidence, corpus, data, export, metrics, net, train
 from .data import Config
 
-CHOSEN = (Config(length=256, cycles=6.0, crops=4), net.Arch())
+CHOSEN = (Config(length=128, cycles=6.0, crops=4), net.Arch())
 SEEDS = (0, 1, 2, 3, 4)
 SEARCH: tuple[tuple[str, Config, net.Arch], ...] = (
     ("C16 L256 K6", Config(256, 6.0), net.Arch()),
@@ -100,7 +100,21 @@ def rows(p: train.Prepared, s: confidence.Scored, seeds: Sequence[int]) -> list[
                       f"   TEP-shared {_calls(sc['tep-shared'], y['tep-shared'])}"
                       f"   sim {_calls(sc['sim'], y['sim'])}")
     return [*lines, "  per tag (called when half its records are), TEP-shared, simulated:",
-            *detail]
+            *detail, *by_type(p, metrics.sigmoid(s.logits("plant")))]
+
+
+def by_type(p: train.Prepared, score: np.ndarray) -> list[str]:
+    """The ensemble's plant calls per loop type (the README's caveat: sticky records are
+    mostly flow loops, the others mostly levels)."""
+    kinds = [r.cause for r in data.plant()]
+    out = ["  ensemble per loop type (sticky found, others called) at "
+           + "/".join(f"{t:g}" for t in metrics.THRESHOLDS) + ":"]
+    for kind in sorted(set(kinds)):
+        m = np.array([k == kind for k in kinds])
+        out.append(f"    {kind:<22} " + "  ".join(
+            "{}/{} {}/{}".format(*metrics.calls(score[m], p.labels["plant"][m], t))
+            for t in metrics.THRESHOLDS))
+    return out
 
 
 def search(part: int = 0, parts: int = 1, log: Any = print) -> None:

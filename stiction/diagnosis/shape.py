@@ -40,10 +40,10 @@ import numpy as np
 from .._validate import FloatArray
 from ..detectors.hammerstein import controller_sign
 from ..signal.cycle import find_cycle
-from .site import SiteStats
+from .site import PRIOR_WEIGHT, SiteStats, label_shift, platt
 
-__all__ = ["WEIGHTS", "Member", "Network", "ShapeScore", "features", "head", "inputs",
-           "load", "orientation", "score", "spans"]
+__all__ = ["WEIGHTS", "Member", "Network", "ShapeScore", "at_site", "calibrated", "features",
+           "head", "inputs", "load", "orientation", "score", "spans"]
 
 WEIGHTS = Path(__file__).with_name("shape.npz")
 """The shipped weights (written by ``python -m lab shape --write``)."""
@@ -240,6 +240,30 @@ def score(op: FloatArray, pv: FloatArray, *, period: float | None = None,
     f = features(net, x, told=sign != 0)
     z = float(head(net, f))
     return ShapeScore(_sigmoid(z), z, f, x.shape[0], period, sign)
+
+
+def calibrated(net: Network, logits: FloatArray | float) -> FloatArray:
+    """The probability that a window is sticky where sticky windows are as common as in
+    the held-out simulation (``meta["sim_prior"]``): the logit through the Platt map fitted
+    there (``meta["platt"]``)."""
+    ab = net.meta["platt"]
+    if not isinstance(ab, list | tuple) or len(ab) != 2:
+        raise ValueError(f"the weights' meta has no Platt map: {ab!r}")
+    return platt(logits, float(ab[0]), float(ab[1]))
+
+
+def at_site(net: Network, logits: Sequence[float] | FloatArray) -> tuple[FloatArray, float]:
+    """The probabilities of a site's windows (the files of one batch, a gateway's loops'
+    latest windows) at the share of sticky windows they imply, and that share (label-shift
+    EM, :func:`stiction.diagnosis.site.label_shift`, the simulation's share counted as
+    :data:`~stiction.diagnosis.site.PRIOR_WEIGHT` windows). Call stiction at
+    ``meta["threshold"]`` (90 % of calls right on held-out simulation). One window alone
+    moves the share little: score it with :func:`calibrated` and say so."""
+    prior = net.meta["sim_prior"]
+    if not isinstance(prior, float):
+        raise ValueError(f"the weights' meta has no simulated share: {prior!r}")
+    return label_shift(calibrated(net, np.asarray(logits, dtype=np.float64)), prior,
+                       prior_weight=PRIOR_WEIGHT)
 
 
 def _arrays(d: dict[str, np.ndarray], prefix: str) -> tuple[FloatArray, FloatArray]:

@@ -8,6 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from deploy_support import require
 
 from lab.shape import draws, historian, loads, metrics, simulate
 from lab.shape.valves import LaggedValve, MixedValve
@@ -74,6 +75,7 @@ def test_a_loop_without_friction_is_its_twin_sample_for_sample(monkeypatch) -> N
         loop = draws.draw(seed, index)
         return dataclasses.replace(loop, fs=0.0, fd=0.0, k=1.0)
 
+    require(loads.FACTORY.exists(), f"{loads.FACTORY} not found (../shared/data)")
     monkeypatch.setattr(simulate, "draw", frictionless)
     monkeypatch.setattr(simulate, "STEPS", 2000)
     monkeypatch.setattr(simulate, "WARM", 200)
@@ -102,6 +104,7 @@ def test_draws_are_seeded_and_loops_tuned_below_their_ultimate_gain() -> None:
 
 def test_real_residuals_come_from_the_unlabelled_factory_loops_only() -> None:
     assert loads.FACTORY.name == "unlabelled-factory"
+    require(loads.FACTORY.exists(), f"{loads.FACTORY} not found (../shared/data)")
     lib = loads.residuals()
     assert len(lib) == 4 and all(x.size == 10_080 and np.all(np.isfinite(x)) for x in lib)
     y = loads.replay(np.random.default_rng(1), 5000)

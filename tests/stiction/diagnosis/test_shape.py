@@ -69,9 +69,9 @@ def test_inputs_are_resampled_detrended_and_standardised() -> None:
 
 def test_the_score_ignores_signs_offsets_and_scales() -> None:
     rng = np.random.default_rng(8)
-    t = np.arange(1500.0)
-    op = np.cumsum(rng.standard_normal(1500)) * 0.1 + 3 * (t % 200) / 200
-    pv = np.round(np.sin(2 * np.pi * t / 200) * 3) + 0.2 * rng.standard_normal(1500)
+    t = np.arange(5000.0)
+    op = np.cumsum(rng.standard_normal(5000)) * 0.1 + 3 * (t % 200) / 200
+    pv = np.round(np.sin(2 * np.pi * t / 200) * 3) + 0.2 * rng.standard_normal(5000)
     base = shape.score(op, pv, period=200.0)
     assert 0.0 <= base.score <= 1.0 and base.spans == 4
     for a, b, c, d in ((-1.0, 0.0, 1.0, 0.0), (1.0, 0.0, -1.0, 0.0), (-1.0, 5.0, -1.0, 0.0),
@@ -80,3 +80,38 @@ def test_the_score_ignores_signs_offsets_and_scales() -> None:
         assert other.logit == pytest.approx(base.logit, abs=1e-7)
     assert shape.score(op, pv).period is not None  # the cycle looked up when not given
     assert shape.score(op, pv, find=False).period is None
+
+
+def test_the_shipped_network_tells_stick_slip_from_a_loop_ringing_from_its_tuning() -> None:
+    from stiction.scenarios.named import scenario, simulate  # noqa: PLC0415
+
+    net = shape.load()
+    threshold = net.meta["threshold"]
+    assert isinstance(threshold, float)
+    for name, sticky in (("table4-case1", True), ("table5-case1", True),
+                         ("aggressive-tuning", False)):
+        r = simulate(scenario(name), noise=0.1, seed=0)
+        s = shape.score(r.op[-3600:], r.pv[-3600:])
+        assert s.readable
+        p = float(shape.calibrated(net, s.logit))
+        if sticky:  # scores 0.98-1.00 on seeds 0-2
+            assert s.score > 0.9 and p > threshold, (name, s)
+        else:  # 0.31-0.32
+            assert s.score < 0.5 and p < threshold, (name, s)
+
+
+def test_a_cycle_of_a_few_samples_is_not_readable() -> None:
+    t = np.arange(2000.0)
+    fast = shape.score(np.sin(2 * np.pi * t / 4), np.cos(2 * np.pi * t / 4), period=4.0)
+    assert not fast.readable
+    assert shape.score(np.sin(t / 30), np.cos(t / 30), period=188.5).readable
+
+
+def test_a_site_moves_the_probabilities_by_its_share_of_sticky_windows() -> None:
+    net = shape.load()
+    mostly_sticky = np.r_[np.full(30, 3.0), np.full(10, -3.0)]
+    mostly_good = np.r_[np.full(2, 3.0), np.full(38, -3.0)]
+    p_sticky, share_sticky = shape.at_site(net, mostly_sticky)
+    p_good, share_good = shape.at_site(net, mostly_good)
+    assert share_sticky > 0.5 and share_good < 0.15
+    assert p_sticky[0] > float(shape.calibrated(net, 3.0)) > p_good[0]

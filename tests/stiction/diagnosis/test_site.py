@@ -89,3 +89,12 @@ def test_platt_is_a_sigmoid_of_a_scaled_logit() -> None:
     assert float(platt(0.0, 2.0, 0.0)) == 0.5
     assert float(platt(1.0, 2.0, -2.0)) == 0.5
     assert float(platt(1000.0, 1.0, 0.0)) == pytest.approx(1.0)
+
+
+def test_label_shift_on_few_windows_stays_near_the_source_share() -> None:
+    high = np.full(3, 0.99)  # three confident windows: not yet a site full of sticky valves
+    _, free = label_shift(high, 0.2)
+    _, held = label_shift(high, 0.2, prior_weight=20.0)
+    assert free > 0.95 and 0.2 < held < 0.4
+    q, none = label_shift(np.empty(0), 0.2, prior_weight=20.0)
+    assert none == pytest.approx(0.2) and q.size == 0
