@@ -23,8 +23,12 @@ from .. import _cache
 from . import confidence, corpus, data, export, metrics, net, train
 from .data import Config
 
-CHOSEN = (Config(length=128, cycles=6.0, crops=4), net.Arch())
+CHOSEN = (Config(length=128, cycles=6.0, crops=2), net.Arch())
 SEEDS = (0, 1, 2, 3, 4)
+SHIPPED = 3
+"""The first SHIPPED seeds make the exported ensemble: on the held-out simulation three
+members score as five (AUC 0.885) and two spans as four (0.885; one span 0.880), at 12
+network passes a window instead of 40."""
 SEARCH: tuple[tuple[str, Config, net.Arch], ...] = (
     ("C16 L256 K6", Config(256, 6.0), net.Arch()),
     ("C32 L256 K6", Config(256, 6.0), net.Arch((32, 32, 32, 32), hidden=32)),
@@ -39,6 +43,9 @@ SEARCH_SEEDS = (0,)
 
 
 def _key(cfg: Config, arch: net.Arch, seed: int) -> str:
+    """The cache key of a trained network. ``crops`` shapes the scoring only (training reads
+    one span at a time): the key holds it at 4, the value the cache was first written with."""
+    cfg = dataclasses.replace(cfg, crops=4)
     built = len(corpus.built(corpus.TRAIN))
     text = f"{corpus.VERSION}/{built}/{cfg}/{arch}/{seed}/{train.EPOCHS}/{train.PER_WINDOW}"
     return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -85,6 +92,8 @@ def rows(p: train.Prepared, s: confidence.Scored, seeds: Sequence[int]) -> list[
     tag_w = metrics.group_weights(p.groups["plant"])
     members = [([i], f"seed {sd}") for i, sd in enumerate(seeds)]
     members.append((list(range(len(seeds))), "ensemble"))
+    if len(seeds) > SHIPPED:
+        members.append((list(range(SHIPPED)), f"shipped {SHIPPED}"))
     detail = []
     for idx, name in members:
         sub = confidence.Scored([s.models[i] for i in idx], [s.feats[i] for i in idx])
@@ -150,7 +159,9 @@ def main(argv: Sequence[str] = ()) -> None:
     for line in rows(p, s, seeds):
         print(line)
     y = p.labels
-    print("== confidence on the plant records (threshold chosen on simulation alone) ==")
+    s = confidence.Scored(s.models[:SHIPPED], s.feats[:SHIPPED])
+    print(f"== confidence of the shipped ensemble (seeds {', '.join(map(str, seeds[:SHIPPED]))}) "
+          "on the plant records (threshold chosen on simulation alone) ==")
     out = confidence.methods(s, "plant", y["plant"], y["sim"])
     z = s.logits("sim")
     a, b = confidence.fit_platt(z, y["sim"])
