@@ -26,7 +26,8 @@
     step_test:                  # optional: hold one loop in manual, play a step test
       loop: FIC101              # (plcsim/steptest.py, docs/plc-sim.md)
       start_s: 600              # process s from the start (default 0)
-      hold_s: 60                # process s per OP level (default 60)
+      hold_s: 60                # process s per OP level (default: the loop's dead time
+                                # plus four time constants, at least 30 s)
       record: step-test.csv     # optional: the test's recording (t, op, pv, position)
     plants:                     # optional: interacting loops with one source (plcsim/plant.py)
       - plant: sticky-feeds-two # a stiction.scenarios.plants.NAMED_PLANTS name
@@ -197,13 +198,13 @@ def _parse_step_test(top: Section, loops: set[str], source: str, ts: Any
     sec = top.sub("step_test", "step_test")
     loop = sec.req("loop", s.string)
     start = sec.opt("start_s", s.number(non_negative=True), 0.0)
-    hold = sec.opt("hold_s", s.number(positive=True), 60.0)
+    hold = sec.opt("hold_s", s.number(positive=True), None)
     record = sec.opt("record", s.string, None)
     sec.done()
     if loop is not MISSING and loop not in loops:
         sec.error("loop", f"no single loop {loop!r} (loops: {', '.join(sorted(loops))})")
         return None
-    if hold is not MISSING and ts is not MISSING and hold < 5 * ts:
+    if hold not in (MISSING, None) and ts is not MISSING and hold < 5 * ts:
         sec.error("hold_s", f"must hold at least 5 samples (ts {ts:g} s)")
         return None
     if MISSING in (loop, start, hold, record):

@@ -30,7 +30,7 @@ from stiction.models.simulate import LoopBank, LoopParams
 from .config import REGISTERS_PER_LOOP, SimConfig
 from .opcua import OpcUaPlcServer
 from .plant import PlantFeed
-from .steptest import StepTestPlayer
+from .steptest import StepTestPlayer, default_hold_s
 
 __all__ = ["PlcSim", "build_banks", "serve"]
 
@@ -89,10 +89,13 @@ class PlcSim:
         self.step_test: tuple[int, int, StepTestPlayer] | None = None
         if cfg.step_test is not None:
             row = cfg.loop_names().index(cfg.step_test.loop)
+            sc = cfg.loops[row].scenario
+            hold = cfg.step_test.hold_s or default_hold_s(sc.tau, sc.theta, sc.integrating,
+                                                          cfg.ts)
             for k, b in enumerate(self.banks):
                 if row in b.rows:
                     place = int(np.flatnonzero(b.rows == row)[0])
-                    self.step_test = (k, place, StepTestPlayer(cfg.step_test))
+                    self.step_test = (k, place, StepTestPlayer(cfg.step_test, hold))
         self.op = np.zeros(n)
         self.pv = np.zeros(n)
         self.position = np.full(n, np.nan)  # the valves' (plant loops: none)
@@ -120,8 +123,10 @@ class PlcSim:
             sp = b.sp_base + np.where(t >= b.sp_time, b.sp_step, 0.0)
             manual = None
             test = self.step_test if self.step_test and self.step_test[0] == k else None
-            if test is not None:
-                held = test[2].manual(t, float(self.op[b.rows[test[1]]]))
+            if test is not None:  # the OP automatic left (before any: the operating point)
+                op_now = (float(self.op[b.rows[test[1]]]) if self.steps
+                          else 100.0 * float(b.bank.x0[test[1]]))
+                held = test[2].manual(t, op_now)
                 if held is not None:
                     manual = np.full(b.rows.size, np.nan)
                     manual[test[1]] = held

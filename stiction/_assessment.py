@@ -11,7 +11,7 @@ import dataclasses
 import enum
 from typing import Any
 
-__all__ = ["DEFAULT_K", "Assessment", "Evidence", "Sizes", "Verdict"]
+__all__ = ["DEFAULT_K", "POSITION_USES", "Assessment", "Evidence", "Sizes", "Verdict"]
 
 DEFAULT_K = 1.99
 """He's overshoot factor K that :func:`stiction.analyze` assumes unless told (Table 1 valve)."""
@@ -56,6 +56,13 @@ class Evidence:
     def to_dict(self) -> dict[str, Any]:
         return {"test": self.test, "value": self.value, "vote": self.vote, "note": self.note}
 
+
+POSITION_USES = ("used", "could_not_tell", "not_a_position")
+"""What became of the valve's position where one was given (:attr:`Assessment.position_use`):
+it was used (its travel decided the verdict, or agreed with a calm loop's); it could not tell
+(too gappy, too few reversals: OP and PV decided); it did not show it is the valve's
+position (moves against OP, another scale, a lag, held while PV moved: OP and PV decided,
+and the reason says why)."""
 
 SPAN = "% of span"
 OP_UNITS = "OP units"
@@ -113,6 +120,9 @@ class Assessment:
     the outputs show is :meth:`sizes`: one unit, labelled, the jump wherever fd and fs are.
     ``band`` / ``band_op`` (dead band plus stick band, fraction of span / OP units) are set
     only where the valve's position was read and the size measured from its travel.
+    ``position_use`` is None where no position was given, else one of
+    :data:`POSITION_USES` (the evidence ``travel`` says why); :meth:`to_dict` leaves it out
+    while it is None, so that a reader older than the field reads what has no position.
     """
 
     verdict: Verdict
@@ -132,6 +142,7 @@ class Assessment:
     evidence: tuple[Evidence, ...] = ()
     band: float | None = None
     band_op: float | None = None
+    position_use: str | None = None
 
     def sizes(self, k: float = DEFAULT_K) -> Sizes | None:
         """The size in one unit (:class:`Sizes`): percent of span when the OP range was
@@ -153,8 +164,11 @@ class Assessment:
                      None if band is None else band * scale)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping with exactly the field names of the dataclass."""
+        """JSON-ready mapping with exactly the field names of the dataclass (``position_use``
+        only where a position was given)."""
         out = dataclasses.asdict(self)
+        if self.position_use is None:
+            del out["position_use"]
         out["verdict"] = str(self.verdict)
         out["warnings"] = list(self.warnings)
         out["evidence"] = [e.to_dict() for e in self.evidence]

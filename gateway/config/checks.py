@@ -2,12 +2,14 @@
 
 Each check adds one problem line naming the section and the key:
 
-* **memory**: the loop windows, twice (the state file copies them when it writes), and the
-  plant step (:func:`plant_bytes`) must fit ``gateway.memory_limit_mb`` (default: half of
-  this machine's memory, or of the service's memory limit if lower). ``window_s: 1e9`` or
-  ``poll_interval_s: 1e-6`` would otherwise end in MemoryError at start, or in the machine
-  swapping; so would 2,000 loops of 65,536-sample windows with ``plant.max_samples:
-  65536`` (about 10 GiB in the plant step).
+* **memory**: what ``run`` holds at its peak (:func:`memory_bytes`: the loop windows as
+  allocated, positions included, a copy of them for a state write, a restore or a reload,
+  the analysis' copies in flight, and the plant step, :func:`plant_bytes`; issue 38 item 4,
+  tests/config/test_memory_count.py measures it) must fit ``gateway.memory_limit_mb``
+  (default: half of this machine's memory, or of the service's memory limit if lower).
+  ``window_s: 1e9`` or ``poll_interval_s: 1e-6`` would otherwise end in MemoryError at
+  start, or in the machine swapping; so would 2,000 loops of 65,536-sample windows with
+  ``plant.max_samples: 65536`` (about 10 GiB in the plant step).
 * **state file**: ``gateway.state_file`` must not be the config file (the gateway would
   overwrite it) nor an existing file that is not a state file (anything but an empty file
   or a zip archive: a state file that cannot be read is set aside, a stranger's file must
@@ -23,6 +25,7 @@ Each check adds one problem line naming the section and the key:
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import os
 import resource
@@ -32,11 +35,24 @@ from typing import Any
 
 from ..wire.registers import IDENTIFICATION_OBJECTS
 from .model import Config
+from .reading import bounded, open_regular
 from .schema import Problems
 
-__all__ = ["FDS_BASE", "FDS_PER_DEVICE", "FDS_PER_WORKER", "bind_check", "check_config",
-           "default_memory_limit_mb", "fds_needed", "identification", "machine_memory_bytes",
-           "plant_bytes", "window_bytes"]
+__all__ = [
+    "FDS_BASE",
+    "FDS_PER_DEVICE",
+    "FDS_PER_WORKER",
+    "analysis_copy_bytes",
+    "bind_check",
+    "check_config",
+    "default_memory_limit_mb",
+    "fds_needed",
+    "identification",
+    "machine_memory_bytes",
+    "memory_bytes",
+    "plant_bytes",
+    "window_bytes",
+]
 
 FDS_BASE = 64  # interpreter, log, state file, the workers' queues, sd_notify
 FDS_PER_DEVICE = 2  # a connection (OPC UA: and the endpoint probe)
@@ -47,6 +63,8 @@ PLANT_BYTES_PER_SAMPLE = 112
 pickle in the gateway (float32 OP and PV, 16 in all) and, in the worker, the job again and
 the analysis' matrices (float64 signals, spectra and their sums: 45-83 measured from 2,000
 to 3,300,000 loop-samples; tests/config/test_plant_memory.py fails if this is too low)."""
+ANALYSIS_BATCH_LOOPS = 64
+"""Loops per batch of an analysis round (the scheduler's default ``batch_size``)."""
 PLANT_BYTES_FIXED = 8 * 2**20
 """Bytes the plant step of one time base holds whatever its size (the groups' evidence)."""
 MAX_IDENTIFICATION_CHARS = 30  # 7 objects fit one Modbus answer (253 bytes)
@@ -77,16 +95,51 @@ def default_memory_limit_mb() -> float:
     return machine_memory_bytes() / 2 / 2**20
 
 
-def window_bytes(config: Config) -> int:
-    """Bytes of every loop window: 9 per sample and loop (float32 OP and PV, a quality
-    byte) and 8 per sample and window bank (a time stamp); a bank per device and length."""
-    total = 0
-    banks: set[tuple[str, int]] = set()
+def _banks(config: Config) -> dict[tuple[str, int], tuple[int, bool]]:
+    """The window banks ``run`` makes (one per device and window length, as
+    ``runtime.reload`` groups them): (device, samples) -> (loops, whether any reads the
+    valve's position)."""
+    banks: dict[tuple[str, int], tuple[int, bool]] = {}
     for lp in config.loops:
-        n = config.window_samples(lp)
-        total += 9 * n
-        banks.add((lp.device, n))
-    return total + sum(8 * n for _dev, n in banks)
+        key = (lp.device, config.window_samples(lp))
+        loops, pos = banks.get(key, (0, False))
+        banks[key] = (loops + 1, pos or lp.position is not None)
+    return banks
+
+
+def window_bytes(config: Config) -> int:
+    """Bytes of every loop window, exactly as ``run`` allocates them: per bank (a device and
+    a window length) 9 per sample and loop (float32 OP and PV, a quality byte), 4 more per
+    sample and loop when any loop of the bank reads the valve's position (the bank then holds
+    a position for every loop of it), and 8 per sample (a time stamp)."""
+    return sum(n * (loops * (13 if pos else 9) + 8)
+               for (_dev, n), (loops, pos) in _banks(config).items())
+
+
+def analysis_copy_bytes(config: Config) -> int:
+    """Bytes of the windows an analysis round holds copied at once: at most 2 batches per
+    worker in flight (the largest of the round's), each at most
+    :data:`ANALYSIS_BATCH_LOOPS` loops of one bank, twice (the jobs and their pickles)."""
+    workers = config.gateway.analysis_workers or max(1, (os.cpu_count() or 2) - 1)
+    sizes = []
+    for (_dev, n), (loops, pos) in _banks(config).items():
+        for lo in range(0, loops, ANALYSIS_BATCH_LOOPS):
+            sizes.append(min(ANALYSIS_BATCH_LOOPS, loops - lo) * n * (13 if pos else 9)
+                         + 8 * n)
+    return 2 * sum(sorted(sizes, reverse=True)[:2 * workers])
+
+
+def memory_bytes(config: Config) -> dict[str, int]:
+    """What ``check-config`` counts against ``gateway.memory_limit_mb``: the data ``run``
+    holds at its peak (its interpreters, about 100 MiB per process, are the rest of the
+    default budget). ``windows`` (:func:`window_bytes`); ``copy``, one more copy of them:
+    a state write's snapshot, the arrays read at a restore, or a reload's new windows beside
+    the old (never two at once: a reload waits for a state write); ``analysis``
+    (:func:`analysis_copy_bytes`) and ``plant`` (:func:`plant_bytes`), which may run
+    during a state write."""
+    windows = window_bytes(config)
+    return {"windows": windows, "copy": windows, "analysis": analysis_copy_bytes(config),
+            "plant": plant_bytes(config)[0]}
 
 
 def plant_bytes(config: Config) -> tuple[int, tuple[int, int] | None]:
@@ -121,12 +174,14 @@ def _check_memory(problems: Problems, config: Config) -> None:
     if limit_mb is None:
         limit_mb, origin = default_memory_limit_mb(), "half this machine's memory"
     budget = limit_mb * 2**20
-    windows = 2 * window_bytes(config)
-    plant, largest = plant_bytes(config)
+    parts = memory_bytes(config)
+    windows = parts["windows"] + parts["copy"] + parts["analysis"]
+    plant = parts["plant"]
     if windows + plant <= budget or not config.loops:
         return
     shown = f"{limit_mb:,.0f}" if limit_mb >= 10 else f"{limit_mb:g}"
     budget_text = f"the memory budget of {shown} MiB ({origin})"
+    largest = plant_bytes(config)[1]
     if windows <= budget and largest is not None:
         loops, width = largest
         problems.add("plant", "max_samples",
@@ -149,41 +204,45 @@ def _check_memory(problems: Problems, config: Config) -> None:
                      "poll_interval_s")
         return
     problems.add("gateway", "memory_limit_mb",
-                 f"the loop windows need {_gib(windows)} with the state file's copy, over "
-                 f"{budget_text}; the largest is loop {big.name}'s, {n:,} samples ({what}): "
-                 "shorten window_s, lengthen poll_interval_s or raise "
-                 "gateway.memory_limit_mb")
+                 f"the loop windows need {_gib(windows)} with a copy of them (a state write, "
+                 f"a reload) and the analysis' copies in flight, over {budget_text}; the "
+                 f"largest is loop {big.name}'s, {n:,} samples ({what}): shorten window_s, "
+                 "lengthen poll_interval_s or raise gateway.memory_limit_mb")
 
 
 # ---------------------------------------------------------------------------- state file
 
 
 def _check_state_file(problems: Problems, config: Config) -> None:
-    state = Path(config.gateway.state_file)
-    source = Path(config.source)
+    try:  # a stat or an open on a hung mount never returns: bounded (config/reading.py)
+        problem = bounded(_state_file_problem, Path(config.gateway.state_file),
+                          Path(config.source))
+    except OSError as exc:
+        problem = f"{config.gateway.state_file}: {exc.strerror or exc}"
+    if problem is not None:
+        problems.add("gateway", "state_file", problem)
+
+
+def _state_file_problem(state: Path, source: Path) -> str | None:
     if source.is_file() and (state.resolve() == source.resolve()
                              or (state.exists() and os.path.samefile(state, source))):
-        problems.add("gateway", "state_file", f"{state} is this config file: the gateway "
-                     "would overwrite it with its state")
-        return
+        return f"{state} is this config file: the gateway would overwrite it with its state"
     if state.is_dir():
-        problems.add("gateway", "state_file", f"{state} is a directory; name a file in it")
-        return
-    if state.exists() and not _state_like(state):
-        problems.add("gateway", "state_file", f"{state} exists and is not a gateway state "
-                     "file (not a zip archive): the gateway would set it aside and write "
-                     "its state there; name another file")
-
-
-def _state_like(path: Path) -> bool:
-    """Empty, or a zip archive (a state file, maybe truncated, or a foreign one: both are
-    set aside at start with a warning)."""
+        return f"{state} is a directory; name a file in it"
+    if not state.exists():
+        return None
     try:
-        with open(path, "rb") as fh:
+        with open_regular(state) as fh:
             head = fh.read(4)
-    except OSError:
-        return True  # unreadable: the gateway reports it when it starts
-    return head in (b"", b"PK\x03\x04")
+    except OSError as exc:
+        if exc.errno == errno.EINVAL:  # a FIFO, a device: never a state file
+            return f"{state} {exc.strerror}"
+        return None  # unreadable: the gateway reports it when it starts
+    if head not in (b"", b"PK\x03\x04"):  # empty, or a zip archive (maybe truncated, or a
+        # foreign one: both are set aside at start with a warning)
+        return (f"{state} exists and is not a gateway state file (not a zip archive): the "
+                "gateway would set it aside and write its state there; name another file")
+    return None
 
 
 # ---------------------------------------------------------------------------- listeners

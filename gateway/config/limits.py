@@ -2,7 +2,9 @@
 
 :func:`read_document` reads a YAML file for :func:`gateway.config.load_config`:
 
-* at most :data:`MAX_CONFIG_BYTES` are read (a larger file is refused unread);
+* at most :data:`MAX_CONFIG_BYTES` are read (a larger file is refused unread), from a
+  regular file, within :data:`gateway.config.reading.READ_TIMEOUT_S` (a FIFO or a hung
+  network mount is refused, never waited on);
 * the bytes must be UTF-8 (a byte-order mark is allowed); a byte that is not is named with
   its line and column, e.g. a ``°`` saved as Latin-1 in a comment;
 * before anything is built, one pass over the parser's events (no recursion, nothing kept
@@ -26,6 +28,7 @@ import yaml
 from yaml import events
 
 from ..errors import ConfigError
+from .reading import read_bytes
 
 __all__ = ["MAX_ALIASES", "MAX_CONFIG_BYTES", "MAX_DEPTH", "MAX_NODES", "read_document"]
 
@@ -46,8 +49,7 @@ def read_document(path: str | os.PathLike[str]) -> Any:
     """The YAML document of ``path``, within the limits above; ConfigError otherwise."""
     source = str(path)
     try:
-        with open(path, "rb") as fh:
-            data = fh.read(MAX_CONFIG_BYTES + 1)
+        data = read_bytes(path, MAX_CONFIG_BYTES)  # a regular file, within a time limit
     except OSError as exc:
         raise ConfigError([f"{source}: cannot read: {exc.strerror or exc}"]) from None
     if len(data) > MAX_CONFIG_BYTES:

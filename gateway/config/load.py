@@ -19,7 +19,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, TypeGuard, TypeVar
 
 from ..errors import ConfigError
-from ..wire.results import MAX_RESULT_UNIT_ID, RESULT_BLOCK_SIZE, overlapping_blocks
+from ..wire.results import BLOCK_SIZES, MAX_RESULT_UNIT_ID, overlapping_blocks
 from . import schema as s
 from .addresses import assign_result_addresses
 from .checks import check_config, identification
@@ -116,7 +116,7 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
     findings = top.opt("findings", s.string, None)  # the file is read by run, not here
     listed = s.entries(top, "loops", "loop") if top.has("loops") or not tables else ()
     for _i, name, sec in itertools.chain(listed, tag_entries(problems, tables, protocols)):
-        loop = _parse_loop(sec, devices, protocols, server.unit_id)
+        loop = _parse_loop(sec, devices, protocols, server.unit_id, server.block_registers)
         sec.done()
         address = sec.raw.get("result_address")
         unit = sec.raw.get("result_unit_id", server.unit_id)
@@ -135,10 +135,11 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
     check_overlaps(sections, [d for d in devices.values() if d is not None], loops)
     assigned: list[str] = []
     if one_gateway:  # several gateways: each assigns its own blocks
-        loops, assigned, full = assign_result_addresses(loops, blocks)
+        loops, assigned, full = assign_result_addresses(loops, blocks, server.block_registers)
         for name, message in full.items():
             sections[name].error("result_address", message)
-        _check_result_blocks(problems, sections, blocks, server.unit_id)
+        _check_result_blocks(problems, sections, blocks, server.unit_id,
+                             server.block_registers)
     if not problems.ok:
         raise ConfigError(problems.lines)
     config = Config(source, tuple(d for d in devices.values() if d is not None),
@@ -181,7 +182,16 @@ PLANT_KEYS: dict[str, Callable[[Any], Any]] = {
 HYSTERESIS_KEYS: dict[str, Callable[[Any], Any]] = {
     "rounds": s.integer(1, 1000),
     "margin": s.number(non_negative=True, at_most=1.0),
+    "band": s.number(non_negative=True, at_most=0.5),
 }
+def _block_registers(value: Any) -> int:
+    """``modbus_server.block_registers``: 20 or 32."""
+    if isinstance(value, bool) or value not in BLOCK_SIZES:
+        raise ValueError(f"must be {' or '.join(map(str, BLOCK_SIZES))} (registers per "
+                         "loop: 32 is the extended block, docs/modbus-map.md)")
+    return int(value)
+
+
 SERVER_KEYS: dict[str, Callable[[Any], Any]] = {
     "listen": s.listen_address,
     "unit_id": s.integer(0, 247),
@@ -189,6 +199,7 @@ SERVER_KEYS: dict[str, Callable[[Any], Any]] = {
     "max_connections": s.integer(1, 10000),
     "idle_timeout_s": s.number(positive=True),
     "identification": identification,
+    "block_registers": _block_registers,
 }
 
 
@@ -227,7 +238,8 @@ def _parse_point(sec: Section, device: DeviceConfig | None,
 
 
 def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
-                protocols: Mapping[str, str], default_unit: Any) -> LoopConfig | None:
+                protocols: Mapping[str, str], default_unit: Any,
+                block: int) -> LoopConfig | None:
     name = sec.req("name", s.string)
     device_name = sec.req("device", s.string)
     device: DeviceConfig | None = None
@@ -258,7 +270,7 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
     delay = sec.opt("delay_s", s.number(non_negative=True), 0.0)
     window = sec.opt("window_s", s.number(positive=True), 7200.0)
     op_range = sec.opt("op_range", s.number_pair, (0.0, 100.0))
-    result_address = sec.opt("result_address", s.integer(0, 65536 - RESULT_BLOCK_SIZE),
+    result_address = sec.opt("result_address", s.integer(0, 65536 - block),
                              None)  # None: assigned once every loop is read
     result_unit_id = sec.opt("result_unit_id", s.integer(1, MAX_RESULT_UNIT_ID), default_unit)
     unit = sec.opt("unit", _unit, "")
@@ -302,12 +314,13 @@ def _kp(value: Any) -> float | None:
 
 
 def _check_result_blocks(problems: Problems, sections: Mapping[str, Section],
-                         blocks: list[tuple[str, int, int]], default_unit: Any) -> None:
-    """Within each result unit id, a loop's block must not overlap another's (reported
-    once per pair of neighbours in address order); the same address on two unit ids is
-    fine."""
-    n = RESULT_BLOCK_SIZE - 1
-    for name, unit, a, other, oa in overlapping_blocks(blocks):
+                         blocks: list[tuple[str, int, int]], default_unit: Any,
+                         size: int) -> None:
+    """Within each result unit id, a loop's block (``size`` registers) must not overlap
+    another's (reported once per pair of neighbours in address order); the same address on
+    two unit ids is fine."""
+    n = size - 1
+    for name, unit, a, other, oa in overlapping_blocks(blocks, size):
         where = "" if unit == default_unit else f" on result unit id {unit}"
         message = f"block {a}..{a + n} overlaps loop {other} ({oa}..{oa + n}){where}"
         if name in sections:

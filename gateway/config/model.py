@@ -75,6 +75,9 @@ class ResultServerSettings:
     # what read device identification (FC 43/14) answers: (object name, text) pairs of
     # gateway.wire.registers.IDENTIFICATION_OBJECTS; empty: FC 43 is refused
     identification: tuple[tuple[str, str], ...] = ()
+    # registers per loop: 20 (the block every SCADA map made before reads) or 32 (the
+    # extended block: +20.. what was added since, gateway.wire.results.EXTENSION)
+    block_registers: int = 20
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,6 +100,7 @@ class HysteresisSettings:
 
     rounds: int = 5  # analysis rounds a new verdict must hold (1: every round's is published)
     margin: float = 0.5  # ... or the change of confidence that publishes it at once (0-1)
+    band: float = 0.02  # a confidence this near a threshold neither counts nor resets (0-0.5)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from .plugins import input_plugin
+from .reading import read_bytes
 from .schema import MISSING, Problems, Section
 
 __all__ = ["COLUMNS", "REQUIRED_COLUMNS", "TagRow", "TagTable", "read_tag_file",
@@ -64,6 +65,8 @@ COLUMNS: dict[str, str] = {
 }
 """The columns of a tag list and what each holds (empty cell: the key's default)."""
 REQUIRED_COLUMNS = ("name", "device", "op", "pv")
+MAX_TAG_BYTES = 8 * 1024 * 1024
+"""A tag list larger than this (8 MiB, as a config) is not read."""
 
 # column -> (point or None, key in the loop / point mapping); "op"/"pv": the protocol's
 # address key (a plugin's POINT_ADDRESS_KEY, "address" by default)
@@ -111,7 +114,11 @@ def read_tag_file(path: str | Path, shown_as: str | None = None) -> TagTable:
     """Read a tag list; ``shown_as`` names it in messages (default: ``path``)."""
     source = shown_as or str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8-sig")  # a spreadsheet's BOM
+        data = read_bytes(path, MAX_TAG_BYTES)  # a regular file, within a time limit
+        if len(data) > MAX_TAG_BYTES:
+            return TagTable(source, [], [f"{source}: larger than {MAX_TAG_BYTES:,} bytes, "
+                                         "the most a tag list may have"])
+        text = data.decode("utf-8-sig")  # a spreadsheet's BOM
     except (OSError, UnicodeDecodeError) as exc:
         reason = getattr(exc, "strerror", None) or str(exc)
         return TagTable(source, [], [f"{source}: cannot read: {reason}"])

@@ -38,6 +38,14 @@ class LoopResult:
     t: float  # wall-clock Unix seconds of the assessment
     window_fill: float  # fraction 0-1 of the window holding good samples
     samples: int  # samples the analysis used
+    judged: float | None = None  # wall Unix seconds of the round that judged the verdict
+    # (None: this one, ``t``); older while it is held (core/hysteresis.py)
+    hold: int = 0  # 0 judged this round, 1 held back (hysteresis), 2 held through warming up
+
+    @property
+    def judged_at(self) -> float:
+        """When the verdict shown was judged: ``t`` unless it is held."""
+        return self.t if self.judged is None else self.judged
 
 
 class ResultStore:
@@ -71,10 +79,11 @@ class ResultStore:
             fn(i)
 
     def set_result(self, i: int, assessment: Assessment, *, t: float, window_fill: float,
-                   samples: int) -> LoopResult:
+                   samples: int, judged: float | None = None, hold: int = 0) -> LoopResult:
         prev = self.results[i]
         seq = max(prev.seq if prev else 0, int(self.seq_floor[i])) + 1
-        res = LoopResult(assessment, seq, t, window_fill, samples)
+        res = LoopResult(assessment, seq, t, window_fill, samples,
+                         None if judged is None or judged == t else judged, hold)
         self.results[i] = res
         self._notify(i)
         return res

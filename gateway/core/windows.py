@@ -100,6 +100,14 @@ class WindowBank:
         rows = np.ix_(self._order(), np.asarray(columns, dtype=np.intp))
         return self.position[rows].T.copy()
 
+    def rows(self) -> tuple[NDArray[np.float64], F32, F32, NDArray[np.uint8], F32 | None]:
+        """Chronological copies of every loop as stored, time-major: t (m,), op/pv/quality
+        and position (None: the bank holds none) (m, loops). One copy of the bank, already
+        in the state file's layout (:meth:`series` copies twice, once transposed)."""
+        order = self._order()
+        return (self.t[order], self.op[order], self.pv[order], self.quality[order],
+                None if self.position is None else self.position[order])
+
     def latest(self) -> tuple[F32, F32, NDArray[np.uint8]]:
         """The newest sample of every loop (NaN / MISSING before the first append)."""
         i = (self.head - 1) % self.size
@@ -152,13 +160,17 @@ class LoopGroup:
         return self.bank.loops
 
 
-def loop_signature(config: Config, loop: LoopConfig) -> str:
+def loop_signature(config: Config, loop: LoopConfig, samples: int | None = None) -> str:
     """What a loop's window depends on: equal signatures mean the stored samples are the
-    same quantity at the same sample time, so the window can be kept."""
+    same quantity at the same sample time, so the window can be kept. ``samples``: the
+    window length to sign with instead of the config's (a window of another length holds
+    the same samples: compared with the length it was saved or kept with, a window whose
+    ``window_s`` alone changed keeps its newest samples)."""
     dev = config.device(loop.device)
     position = () if loop.position is None else (loop.position,)
     return repr((dev.protocol, dev.options, dev.poll_interval_s,
-                 config.window_samples(loop), loop.op, loop.pv, *position))
+                 config.window_samples(loop) if samples is None else samples,
+                 loop.op, loop.pv, *position))
 
 
 def result_signature(config: Config, loop: LoopConfig) -> str:

@@ -20,7 +20,7 @@ import contextlib
 import logging
 import os
 import time
-from collections.abc import Callable, Coroutine, Iterable, Sequence
+from collections.abc import AsyncIterator, Callable, Coroutine, Iterable, Sequence
 from concurrent.futures import Executor
 from types import TracebackType
 from typing import Any
@@ -28,17 +28,20 @@ from typing import Any
 from prometheus_client import CollectorRegistry
 
 from ..config import Config
+from ..config.checks import ANALYSIS_BATCH_LOOPS
 from ..config.plugins import output_plugin
 from ..core.findings import FindingsBook
 from ..core.store import ResultStore
 from ..inputs.base import Source
 from ..outputs.base import Binding, Sink
 from ..outputs.prometheus import GatewayMetrics
+from ..wire.results import moved_indices, moved_line
 from .findings import load_findings, observe, read_configured, reload_findings
 from .logs import clip
 from .poller import Clocks, DevicePoller
 from .reload import (
     ReloadRefused,
+    Runtime,
     build_runtime,
     prepare_listeners,
     read_new_config,
@@ -62,7 +65,8 @@ class Gateway:
 
     def __init__(self, config: Config, *, registry: CollectorRegistry | None = None,
                  analyze: str = DEFAULT_ANALYZE, serve_http: bool = True,
-                 batch_size: int = 64, persist: bool = False, outputs: Sequence[str] = (),
+                 batch_size: int = ANALYSIS_BATCH_LOOPS, persist: bool = False,
+                 outputs: Sequence[str] = (),
                  executor: Callable[[], Executor] | None = None,
                  clocks: Clocks | None = None) -> None:
         self.registry = registry if registry is not None else CollectorRegistry()
@@ -83,7 +87,8 @@ class Gateway:
             interval_wall_s=g.analysis_interval_s / g.time_scale, workers=g.analysis_workers,
             batch_size=batch_size, analyze=analyze, executor=executor,
             on_duration=self.metrics.analysis_duration.observe, plant=config.plant,
-            hysteresis=config.hysteresis, on_verdict=self.metrics.count_verdict)
+            hysteresis=config.hysteresis, on_verdict=self.metrics.count_verdict,
+            time_scale=g.time_scale)
         self.reloads = 0
         self.polling = asyncio.Event()  # set once every poller has completed a tick
         self._polls = PollTasks()
@@ -131,7 +136,8 @@ class Gateway:
     # ------------------------------------------------------------------ life cycle
 
     async def __aenter__(self) -> Gateway:
-        load_findings(self.findings, read_configured(self.config))  # never fails
+        # never fails; bounded in time and off the event loop (config/reading.py)
+        load_findings(self.findings, await asyncio.to_thread(read_configured, self.config))
         try:  # sinks first: the state file is restored before anything else takes time
             binding = self.runtime.binding()
             for sink in self.sinks.values():
@@ -189,7 +195,8 @@ class Gateway:
             try:
                 config = (source if isinstance(source, Config)
                           else await read_new_config(source))
-                await self._apply(config)
+                async with exclusive(self.sinks.values()):  # no state write meanwhile
+                    await self._apply(config)
             except ReloadRefused as refused:
                 self.metrics.reload_failures.labels(stage=refused.stage).inc()
                 log.error("reload refused, keeping the running config: %s", refused.line)
@@ -234,7 +241,7 @@ class Gateway:
         # devices that stay keep their schedule (and their connection if their points are
         # unchanged); new devices start now
         self._polls.start(new.pollers, {n: d for n, d in due.items() if n in new.sources})
-        log.info("reloaded %s", reload_summary(old, new))
+        _log_reloaded(old, new)
 
     # ------------------------------------------------------------------ health
 
@@ -265,6 +272,28 @@ def create_sinks(names: Sequence[str], binding: Binding, **options: Any) -> dict
             raise ValueError(f"unknown output {name!r}")
         sinks[name] = plugin.create_sink(binding, **options)
     return sinks
+
+
+@contextlib.asynccontextmanager
+async def exclusive(sinks: Iterable[Sink]) -> AsyncIterator[None]:
+    """Hold every sink's ``exclusive`` lock (the state file's: a write's snapshot is a copy
+    of the windows), so that a reload makes its new windows only when no such copy exists:
+    never two copies at once (the memory check-config counts, config/checks.py)."""
+    async with contextlib.AsyncExitStack() as held:
+        for sink in sinks:
+            lock = getattr(sink, "exclusive", None)
+            if lock is not None:
+                await held.enter_async_context(lock)
+        yield
+
+
+def _log_reloaded(old: Runtime, new: Runtime) -> None:
+    """The reload's summary line, and a WARNING when loops moved in the config's order
+    (register +19 numbers them by it: issue 38 item 13)."""
+    log.info("reloaded %s", reload_summary(old, new))
+    moved = moved_indices(old.store.loops, new.store.loops)
+    if moved:
+        log.warning("reload: %s", moved_line(moved))
 
 
 async def _bind_all(sinks: dict[str, Sink], binding: Binding) -> None:

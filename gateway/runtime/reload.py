@@ -19,8 +19,9 @@ one source per device, the loop groups (windows) and one poller per device:
 
 * a device whose connection and points are unchanged keeps its source (its connection) and
   its connection state (up/down, backoff);
-* a loop whose *window signature* (device connection and sample time, window length, OP/PV
-  point definitions) is unchanged keeps its window;
+* a loop whose *window signature* (device connection and sample time, OP/PV point
+  definitions; its length aside: a shorter window keeps the newest samples) is unchanged
+  keeps its window;
 * a loop whose whole config is also unchanged keeps its latest assessment (same sequence
   number), latest sample and stale flag;
 * added loops and loops whose window changed start fresh; removed loops are not carried.
@@ -233,8 +234,8 @@ def _carry_windows(config: Config, group: LoopGroup,
     columns = {}
     t_best: Any = np.empty(0)
     for col, lc in enumerate(group.configs):
-        hit = old_cols.get(lc.name)
-        if hit is None or hit[2] != loop_signature(config, lc):
+        hit = old_cols.get(lc.name)  # (its length aside: a shorter window keeps the newest)
+        if hit is None or hit[2] != loop_signature(config, lc, samples=hit[0].size):
             continue
         old_bank, c, _sig = hit
         t, op, pv, q = old_bank.series([c])

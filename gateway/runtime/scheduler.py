@@ -42,6 +42,7 @@ from typing import Any
 
 from stiction import Assessment
 
+from ..config.checks import ANALYSIS_BATCH_LOOPS
 from ..config.model import Config, HysteresisSettings, PlantSettings
 from ..core.hysteresis import VerdictFilter
 from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolve
@@ -58,6 +59,9 @@ SINGLE_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS
 :meth:`AnalysisScheduler.start`)."""
 
 log = logging.getLogger("gateway.analysis")
+Held = tuple[Assessment, float, float, int, float, int]
+"""A round's result of one loop until the plant step: (assessment, t, window fill, samples,
+judged, hold)."""
 plant_log = logging.getLogger("gateway.plant")
 
 WORKER_NICE = 10
@@ -114,16 +118,18 @@ class AnalysisScheduler:
     ``executor`` (tests) replaces the process pool by another executor, e.g. one thread."""
 
     def __init__(self, groups: Sequence[LoopGroup], store: ResultStore, *,
-                 interval_wall_s: float, workers: int = 0, batch_size: int = 64,
+                 interval_wall_s: float, workers: int = 0, batch_size: int = ANALYSIS_BATCH_LOOPS,
                  analyze: str = DEFAULT_ANALYZE,
                  on_duration: Callable[[float], None] | None = None,
                  nice: int = WORKER_NICE,
                  executor: Callable[[], Executor] | None = None,
                  plant: PlantSettings | None = None,
                  hysteresis: HysteresisSettings | None = None,
-                 on_verdict: Callable[[str], None] | None = None) -> None:
-        self.groups = list(groups)
+                 on_verdict: Callable[[str], None] | None = None,
+                 time_scale: float = 1.0) -> None:
         self.store = store
+        self.time_scale = time_scale
+        self.groups = list(groups)  # (sets the windows' lengths: the longest hold)
         self.interval_wall_s = interval_wall_s
         self.workers = workers or max(1, (os.cpu_count() or 2) - 1)
         self.batch_size = batch_size
@@ -141,6 +147,18 @@ class AnalysisScheduler:
         self._pool: Executor | None = None
 
     @property
+    def groups(self) -> list[LoopGroup]:
+        """The windows analysed (a reload sets them; each loop's window length, in wall
+        seconds, bounds how long its judgement is held through warming up)."""
+        return self._groups
+
+    @groups.setter
+    def groups(self, groups: list[LoopGroup]) -> None:
+        self._groups = groups
+        self._windows_s = {cfg.name: g.bank.size * g.ts / self.time_scale
+                           for g in groups for cfg in g.configs}
+
+    @property
     def plant(self) -> PlantSettings:
         """The plant step's settings (a reload sets them; the tracker holds its view)."""
         return self._plant
@@ -155,10 +173,15 @@ class AnalysisScheduler:
         """After a reload: the new runtime's windows and store, and the new settings (each
         loop's verdict hysteresis state stays, by name)."""
         g = config.gateway
-        self.groups, self.store = list(groups), store
+        self.store, self.time_scale = store, g.time_scale
+        self.groups = list(groups)
         self.interval_wall_s = g.analysis_interval_s / g.time_scale
         self.plant = config.plant
         self.verdicts.settings = config.hysteresis
+        # a loop whose result the reload did not carry (its window, or its config, changed)
+        # starts fresh, its hold included (issue 35 item 5)
+        self.verdicts.keep(name for name, res in zip(store.loops, store.results, strict=True)
+                           if res is not None)
 
     async def start(self) -> None:
         """Start the worker processes (and import the analysis in each) before polling."""
@@ -207,8 +230,7 @@ class AnalysisScheduler:
         store = self.store  # a reload swaps the store: results go where their jobs came from
         sem = asyncio.Semaphore(2 * self.workers)
         done = 0
-        held: dict[int, tuple[Assessment, float, float, int]] | None = \
-            {} if self.plant.enabled else None
+        held: dict[int, Held] | None = {} if self.plant.enabled else None
 
         async def one(batch: list[LoopJob]) -> None:
             nonlocal done
@@ -220,14 +242,17 @@ class AnalysisScheduler:
                 sem.release()
             t = now()
             for index, analysed, fill, samples, dur in results:
-                shown = store.results[index]
+                shown, name = store.results[index], store.loops[index]
                 assessment = self.verdicts.publish(
-                    store.loops[index], analysed, t,
-                    shown=None if shown is None else shown.assessment)
+                    name, analysed, t, shown=None if shown is None else shown.assessment,
+                    shown_at=None if shown is None else shown.judged_at,
+                    max_hold_s=self._windows_s.get(name))
+                judged, hold = self.verdicts.published(name, t)
                 if held is not None:  # published after the plant step
-                    held[index] = (assessment, t, fill, samples)
+                    held[index] = (assessment, t, fill, samples, judged, hold)
                 else:
-                    publish(store, index, assessment, t=t, fill=fill, samples=samples)
+                    publish(store, index, assessment, t=t, fill=fill, samples=samples,
+                            judged=judged, hold=hold)
                 if self.on_duration is not None:
                     self.on_duration(dur)
             done += len(results)
@@ -243,9 +268,9 @@ class AnalysisScheduler:
         await asyncio.gather(*tasks)
         if held is not None:
             applied = await self._plant_step(store, groups, held)
-            for index, (assessment, t, fill, samples) in held.items():
+            for index, (assessment, t, fill, samples, judged, hold) in held.items():
                 publish(store, index, applied.get(index, assessment), t=t, fill=fill,
-                        samples=samples)
+                        samples=samples, judged=judged, hold=hold)
         elif self.tracker.groups:  # turned off by a reload: the groups end
             self._set_plant(store, [])
         self.rounds += 1
@@ -255,8 +280,7 @@ class AnalysisScheduler:
 
 
     async def _plant_step(self, store: ResultStore, groups: Sequence[LoopGroup],
-                          held: dict[int, tuple[Assessment, float, float, int]]
-                          ) -> dict[int, Assessment]:
+                          held: dict[int, Held]) -> dict[int, Assessment]:
         """The plant analysis of this round's loops, one worker job per poll interval; the
         store's plant view set; returns the plant-aware assessments of the loops it
         changed. A failure is logged and changes nothing (the per-loop results stand)."""
@@ -286,11 +310,12 @@ class AnalysisScheduler:
 
 
 def publish(store: ResultStore, index: int, assessment: Assessment, *, t: float,
-            fill: float, samples: int) -> None:
+            fill: float, samples: int, judged: float | None = None, hold: int = 0) -> None:
     """One loop's result into the store, its verdict change logged (not while its device is
     down: the device's line says why)."""
     before = store.results[index]
-    store.set_result(index, assessment, t=t, window_fill=fill, samples=samples)
+    store.set_result(index, assessment, t=t, window_fill=fill, samples=samples,
+                     judged=judged, hold=hold)
     if not (store.stale[index] and store.down[index]):
         log_verdict_change(store.loops[index], before, assessment)
 

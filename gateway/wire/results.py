@@ -1,11 +1,14 @@
 """The result-register map (docs/modbus-map.md), defined in this one place.
 
-Each loop has a block of :data:`RESULT_BLOCK_SIZE` registers at its ``result_address`` on its
-``result_unit_id``. :data:`LAYOUT` says which field sits at which offset and how it is
-encoded; :func:`result_block` fills a block, :func:`decode_block` reads one back,
-:data:`VERDICT_CODES` numbers the verdicts, and :func:`overlapping_blocks` finds blocks that
-share registers (the config loader refuses them). Adding a field is one :class:`Field` line
-in :data:`LAYOUT` (in the reserved registers) and one entry in :func:`block_values`.
+Each loop has a block of :data:`RESULT_BLOCK_SIZE` registers (:data:`EXTENDED_BLOCK_SIZE`
+with ``modbus_server.block_registers: 32``) at its ``result_address`` on its
+``result_unit_id``. :data:`LAYOUT` (and :data:`EXTENSION`) say which field sits at which
+offset and how it is encoded; :func:`result_block` fills a block, :func:`decode_block`
+reads one back, :data:`VERDICT_CODES` numbers the verdicts, and
+:func:`overlapping_blocks` finds blocks that share registers (the config loader refuses
+them). Adding a field is one :class:`Field` line in :data:`EXTENSION` (at the next free
+offset, +25 on; the 20 registers of :data:`LAYOUT` are full) and one entry in
+:func:`block_values`.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -24,8 +27,12 @@ from stiction import Assessment, Verdict
 from .codec import TYPES, decode_registers, encode_values
 
 __all__ = [
+    "BLOCK_SIZES",
+    "EXTENDED_BLOCK_SIZE",
+    "EXTENSION",
     "LAYOUT",
     "MAX_RESULT_UNIT_ID",
+    "NO_SOURCE_ADDRESS",
     "RESULT_BLOCK_SIZE",
     "RESULT_LOOPS_PER_UNIT",
     "ROLES",
@@ -33,6 +40,10 @@ __all__ = [
     "Field",
     "block_values",
     "decode_block",
+    "layout",
+    "loops_per_unit",
+    "moved_indices",
+    "moved_line",
     "overlapping_blocks",
     "result_block",
     "unit_images",
@@ -40,9 +51,18 @@ __all__ = [
 ]
 
 RESULT_BLOCK_SIZE = 20
-"""Registers per loop in the result server (offsets +0..+19)."""
+"""Registers per loop in the result server (offsets +0..+19): the default block, the one
+every SCADA map made before the extended block reads."""
+EXTENDED_BLOCK_SIZE = 32
+"""The extended block (``modbus_server.block_registers: 32``): the 20 registers and
+:data:`EXTENSION` at +20.., the rest reserved (0) for fields to come."""
+BLOCK_SIZES = (RESULT_BLOCK_SIZE, EXTENDED_BLOCK_SIZE)
 RESULT_LOOPS_PER_UNIT = 65536 // RESULT_BLOCK_SIZE
-"""Loops whose result blocks fit one unit id's 16-bit register space (3,276)."""
+"""Loops whose result blocks fit one unit id's 16-bit register space (3,276; 2,048 of the
+extended block: :func:`loops_per_unit`)."""
+NO_SOURCE_ADDRESS = 65535
+"""+24 of the extended block when the loop's group has no source loop (no block starts
+there: a block needs at least 20 registers)."""
 MAX_RESULT_UNIT_ID = 247
 
 VERDICT_CODES: dict[str, int] = {
@@ -129,9 +149,41 @@ LAYOUT: tuple[Field, ...] = (
 )
 """Values not estimated are float32 NaN."""
 
+EXTENSION: tuple[Field, ...] = (
+    Field("judged", 20, "uint32", "Unix s (UTC)",
+          "time of the analysis round that judged the verdict (+0) and the numbers shown: "
+          "+12 unless the verdict is held (+22), then older: its age is +12 - +20; 0 "
+          "without an assessment"),
+    Field("hold", 22, "uint16", "code",
+          "0 the verdict was judged by the latest round; 1 held back while a new one waits "
+          "for its rounds (verdict hysteresis); 2 held through warming up (an outage or a "
+          "restart restarted the window; at most the loop's window_s after +20, then code "
+          "8)"),
+    Field("source_unit_id", 23, "uint16", "unit id",
+          "the group's source loop's result unit id (with +24: its block, which stays "
+          "when loops are added, removed or reordered; +19 counts places in the config); "
+          "0 when +24 is 65535"),
+    Field("source_address", 24, "uint16", "register",
+          "the group's source loop's result_address, the first register of its block; "
+          "65535 in no group, or when no loop read is the source"),
+)
+"""The extended block's fields after the 20 registers (``block_registers: 32``); +25..+31
+are reserved (read 0) for the fields to come, which take the next free offsets."""
+
+
+def layout(size: int = RESULT_BLOCK_SIZE) -> tuple[Field, ...]:
+    """The fields of a block of ``size`` registers (:data:`BLOCK_SIZES`)."""
+    return LAYOUT if size < EXTENDED_BLOCK_SIZE else LAYOUT + EXTENSION
+
+
+def loops_per_unit(size: int = RESULT_BLOCK_SIZE) -> int:
+    """Blocks of ``size`` registers in one unit id's register space."""
+    return 65536 // size
+
 
 class LoopResultLike(Protocol):
-    """What a block is made of (``gateway.core.store.LoopResult`` has it)."""
+    """What a block is made of (``gateway.core.store.LoopResult`` has it; the extended
+    block reads its ``judged_at`` and ``hold`` too, where it has them)."""
 
     @property
     def assessment(self) -> Assessment: ...
@@ -159,13 +211,24 @@ def _num(x: float | None) -> float:
 
 
 def block_values(result: LoopResultLike | None, code: int,
-                 plant: tuple[int, int, int] = (0, 0, 0)) -> dict[str, float]:
+                 plant: tuple[int, int, int] = (0, 0, 0),
+                 source: tuple[int, int] = (0, NO_SOURCE_ADDRESS),
+                 size: int = RESULT_BLOCK_SIZE) -> dict[str, float]:
+    """The field values of a block of ``size`` registers (:func:`_values`)."""
+    names = {f.name for f in layout(size)}
+    return {k: v for k, v in _values(result, code, plant, source).items() if k in names}
+
+
+def _values(result: LoopResultLike | None, code: int, plant: tuple[int, int, int],
+            source: tuple[int, int]) -> dict[str, float]:
     """The field values of one loop's block (fields left out are 0). Without an assessment
     (none yet, or stale since start) every float is NaN, never 0: a SCADA screen must not
     show "fd 0.0 %" for a loop never assessed; the sequence number and time are 0.
-    ``plant``: the loop's (group number, role code, source loop's index)."""
-    group, role, source = plant
-    plant_values = {"plant_role": role, "plant_group": group, "plant_source": source}
+    ``plant``: the loop's (group number, role code, source loop's index); ``source``: the
+    source loop's block (unit id, address) for the extended block."""
+    group, role, index = plant
+    plant_values = {"plant_role": role, "plant_group": group, "plant_source": index,
+                    "source_unit_id": source[0], "source_address": source[1]}
     if result is None:
         return {"code": code, **{f.name: math.nan for f in LAYOUT if f.type == "float32"},
                 **plant_values}
@@ -180,16 +243,18 @@ def block_values(result: LoopResultLike | None, code: int,
             "period_s": _num(a.period_s), "jump_percent": _num(size.jump if size else None),
             "timestamp": max(0, int(result.t)),
             "window_fill": result.window_fill, "confidence": _num(a.confidence),
-            **plant_values}
+            "judged": max(0, int(getattr(result, "judged_at", result.t))),
+            "hold": int(getattr(result, "hold", 0)), **plant_values}
 
 
 def result_block(result: LoopResultLike | None, *, code: int, word_order: str = "big",
-                 plant: tuple[int, int, int] = (0, 0, 0)) -> NDArray[np.uint16]:
-    """The :data:`RESULT_BLOCK_SIZE` registers of one loop (``plant``: see
+                 plant: tuple[int, int, int] = (0, 0, 0), size: int = RESULT_BLOCK_SIZE,
+                 source: tuple[int, int] = (0, NO_SOURCE_ADDRESS)) -> NDArray[np.uint16]:
+    """The ``size`` registers of one loop's block (``plant``, ``source``: see
     :func:`block_values`)."""
-    block = np.zeros(RESULT_BLOCK_SIZE, dtype=np.uint16)
-    values = block_values(result, code, plant)
-    for f in LAYOUT:
+    block = np.zeros(size, dtype=np.uint16)
+    values = block_values(result, code, plant, source, size)
+    for f in layout(size):
         if f.name not in values:
             continue
         if f.type == "uint8":
@@ -210,17 +275,19 @@ def _decoded(regs: NDArray[np.uint16], f: Field, word_order: str) -> float:
 
 def decode_block(registers: Iterable[int] | NDArray[np.uint16], word_order: str = "big"
                  ) -> dict[str, float]:
-    """The field values of a block read from the server (``reserved``: sum of the registers
-    after the last field)."""
+    """The field values of a block read from the server (an extended block's too, given
+    its 32 registers; ``reserved``: sum of the registers after the last field)."""
     regs = np.asarray(list(registers) if not isinstance(registers, np.ndarray) else registers,
                       dtype=np.uint16)
-    out = {f.name: _decoded(regs, f, word_order) for f in LAYOUT}
-    end = max(f.offset + f.width for f in LAYOUT)
-    out["reserved"] = float(regs[end:RESULT_BLOCK_SIZE].astype(np.int64).sum())
+    size = EXTENDED_BLOCK_SIZE if len(regs) >= EXTENDED_BLOCK_SIZE else RESULT_BLOCK_SIZE
+    fields = layout(size)
+    out = {f.name: _decoded(regs, f, word_order) for f in fields}
+    end = max(f.offset + f.width for f in fields)
+    out["reserved"] = float(regs[end:size].astype(np.int64).sum())
     return out
 
 
-def overlapping_blocks(blocks: Iterable[tuple[str, int, int]]
+def overlapping_blocks(blocks: Iterable[tuple[str, int, int]], size: int = RESULT_BLOCK_SIZE
                        ) -> Iterator[tuple[str, int, int, str, int]]:
     """Pairs of neighbouring blocks (in unit id and address order) that share registers.
 
@@ -229,11 +296,32 @@ def overlapping_blocks(blocks: Iterable[tuple[str, int, int]]
     address on two unit ids is fine."""
     ordered = sorted(blocks, key=lambda b: (b[1], b[2]))
     for (pname, punit, pa), (name, unit, a) in itertools.pairwise(ordered):
-        if unit == punit and a < pa + RESULT_BLOCK_SIZE:
+        if unit == punit and a < pa + size:
             yield name, unit, a, pname, pa
 
 
-def unit_images(addresses: Mapping[int, Iterable[int]]) -> dict[int, NDArray[np.uint16]]:
+def unit_images(addresses: Mapping[int, Iterable[int]], size: int = RESULT_BLOCK_SIZE
+                ) -> dict[int, NDArray[np.uint16]]:
     """Zeroed register images per unit id, each long enough for its blocks' addresses."""
-    return {u: np.zeros(max([RESULT_BLOCK_SIZE, *(a + RESULT_BLOCK_SIZE for a in addrs)]),
-                        dtype=np.uint16) for u, addrs in addresses.items()}
+    return {u: np.zeros(max([size, *(a + size for a in addrs)]), dtype=np.uint16)
+            for u, addrs in addresses.items()}
+
+
+def moved_indices(old: Sequence[str], new: Sequence[str]) -> list[tuple[str, int, int]]:
+    """``(loop, old index, new index)`` (from 1) of the loops in both lists whose place
+    changed: register +19 (a plant group's source loop, by its place in the config) now
+    names another loop for a SCADA table made before (issue 38 item 13)."""
+    at = {name: k for k, name in enumerate(old, start=1)}
+    return [(name, at[name], k) for k, name in enumerate(new, start=1)
+            if name in at and at[name] != k]
+
+
+def moved_line(moved: Sequence[tuple[str, int, int]], shown: int = 5) -> str:
+    """The WARNING line for :func:`moved_indices`' loops."""
+    listed = ", ".join(f"{name} {a} -> {b}" for name, a, b in moved[:shown])
+    more = f" and {len(moved) - shown} more" if len(moved) > shown else ""
+    return (f"{len(moved)} loop(s) moved in the config's order ({listed}{more}): register "
+            "+19 (a plant group's source loop, by its place in the config) now numbers them "
+            "so; a SCADA table that maps +19 to loops needs `stiction-gateway result-map`'s "
+            "order (the extended block's +23/+24 name the source's block instead, which "
+            "does not move)")

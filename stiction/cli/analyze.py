@@ -15,7 +15,7 @@ from .._assessment import Assessment
 from ..diagnosis.reasons import WHAT
 from . import batch, historian
 from ._common import Subparsers, UsageError
-from .loop import LoopOptions, analyze_file, bursts, view
+from .loop import SP_COLUMNS, LoopOptions, analyze_file, bursts, view
 from .plot import plot_analysis
 
 __all__ = ["VOTE_WORDS", "add_analyze", "bursts", "view"]
@@ -48,14 +48,26 @@ def add_analyze(sub: Subparsers) -> None:
                    help="the valve's position column, in OP's units (a smart positioner's "
                    "travel): stiction is then measured from it (band and slip) instead of "
                    "inferred from PV; unusable (gaps, never reverses): OP and PV decide")
+    s = p.add_mutually_exclusive_group()
+    s.add_argument("--sp", default=None, metavar="COL",
+                   help="the setpoint column (default: " + ", ".join(SP_COLUMNS) + ", any "
+                   "case, where the file has one): the window is judged on its longest "
+                   "stretch between setpoint steps, as a step is not the valve's jump")
+    s.add_argument("--no-sp", dest="no_sp", action="store_true",
+                   help="do not read a setpoint column even where the file has one")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--time", default=None, help="time column: seconds or date-times "
                    "(default: t, time, timestamp, datetime, date time or date)")
     g.add_argument("--ts", type=float, default=None, help="sample time, s (no time column)")
-    p.add_argument("--kp", type=float, default=None, help="process gain, PV units per OP unit")
+    p.add_argument("--kp", type=float, default=None, help="process gain, PV units per OP "
+                   "unit (an integrating process: PV units per s per OP unit); gives fs and "
+                   "the jump")
     p.add_argument("--delay", type=float, default=0.0, help="process dead time, s")
     p.add_argument("--process", choices=("self-regulating", "integrating"),
-                   default="self-regulating")
+                   default="self-regulating", help="self-regulating: PV settles after the "
+                   "valve moves (flow, pressure, temperature; the default); integrating: PV "
+                   "ramps while the valve is off balance (a level). A level read as "
+                   "self-regulating sizes nothing right")
     p.add_argument("--op-range", dest="op_range", nargs=2, type=float, metavar=("LO", "HI"),
                    default=None, help="OP at 0 %% and 100 %% valve span, to report sizes in %% of "
                    "span (default: sizes in OP units; no OP range is assumed)")

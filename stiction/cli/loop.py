@@ -24,7 +24,11 @@ from . import historian
 from ._common import UsageError
 from .plot import Clock, window_clock
 
-__all__ = ["Analysed", "FileTime", "LoopOptions", "analyze_file", "bursts", "view"]
+__all__ = ["SP_COLUMNS", "Analysed", "FileTime", "LoopOptions", "analyze_file", "bursts",
+           "view"]
+
+SP_COLUMNS = ("sp", "setpoint", "set point", "set_point")
+"""Column names read as the setpoint when ``--sp`` is not given (any case), in this order."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,6 +40,8 @@ class LoopOptions:
     op: str = "op"
     pv: str = "pv"
     position: str | None = None  # the valve's position column (OP units): the travel decides
+    sp: str | None = None  # the setpoint column (None: the first of SP_COLUMNS the file has)
+    no_sp: bool = False  # read no setpoint column
     time: str | None = None
     ts: float | None = None
     kp: float | None = None
@@ -78,26 +84,47 @@ def analyze_file(path: Path, o: LoopOptions) -> Analysed:
     wanted = [(o.op, "--op"), (o.pv, "--pv")]
     if o.position is not None:
         wanted.append((o.position, "--position"))
+    sp_name = _sp_column(table, o)
+    if sp_name is not None:
+        wanted.append((sp_name, "--sp"))
     got = historian.read_signals(table, wanted, o.time, o.ts)
     table = got.table  # oldest first
     op, pv = got.series[0], got.series[1]
     pos = got.series[2] if o.position is not None else None
+    sp = got.series[-1] if sp_name is not None else None
     ts, t, t_col, notes = got.ts, got.stamps, got.t_col, got.notes
     secs = np.arange(len(table.rows)) * ts if t is None else t.seconds
     clock = FileTime(table, t_col, secs, ts)
     first, op, pv = clock.cut(o, op, pv)
     if pos is not None:
         pos = pos[first:first + op.size]
-    shown_from = window_clock(t, ts, op, pv)  # the plot's axis: the file's time
-    shown_from = dataclasses.replace(shown_from, start=shown_from.start + first * ts)
+    if sp is not None:
+        sp = sp[first:first + op.size]
     d = analyze_details(op, pv, ts=ts, kp=o.kp, delay=o.delay, process=o.process,
-                        op_range=o.op_range, position=pos)
+                        op_range=o.op_range, position=pos, sp=sp)
+    # the plot's axis, the file's time: the samples judged (after a leading gap, SP steps)
+    shown_from = window_clock(t, ts, op, pv)
+    if d.op is not None:
+        shown_from = Clock((0.0 if t is None else float(t.seconds[0])) + d.start * ts,
+                           shown_from.zone)
+    shown_from = dataclasses.replace(shown_from, start=shown_from.start + first * ts)
     a = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
     stretch = bursts(d)
     if stretch is not None:
         a = dataclasses.replace(a, reason=a.reason + stretch.reason(ts))
     shown = view(a, d, clock.stretch(stretch, first + d.start) if stretch else None)
     return Analysed(shown, a, d, ts, o.op_range, shown_from)
+
+
+def _sp_column(table: historian.Table, o: LoopOptions) -> str | None:
+    """The setpoint column to read: ``--sp``'s, else the first of :data:`SP_COLUMNS` the
+    header has (any case), unless ``--no-sp``; None: no setpoint."""
+    if o.no_sp:
+        return None
+    if o.sp is not None:
+        return o.sp
+    folded = [h.casefold() for h in table.header]
+    return next((table.header[folded.index(n)] for n in SP_COLUMNS if n in folded), None)
 
 
 def bursts(d: Details) -> Stretch | None:

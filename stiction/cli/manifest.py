@@ -25,7 +25,7 @@ from .table import read_text
 __all__ = ["COLUMNS", "Loop", "read_manifest"]
 
 COLUMNS = ("file", "ts", "process", "op_lo", "op_hi", "kp", "delay", "op", "pv", "position",
-           "time")
+           "time", "sp")
 """The columns a manifest may have (any case, any order); ``file`` is required."""
 
 
@@ -84,7 +84,7 @@ def _loop(manifest: Path, line: int, names: list[str], row: list[str], base: Loo
 
 def _changes(cells: dict[str, str]) -> dict[str, Any]:
     """The options a row's cells set (ValueError names the column and what is wrong)."""
-    got: dict[str, Any] = {k: cells[k] for k in ("op", "pv", "position") if k in cells}
+    got: dict[str, Any] = {k: cells[k] for k in ("op", "pv", "position", "sp") if k in cells}
     if "ts" in cells and "time" in cells:
         raise ValueError("give 'ts' (rows at a fixed interval) or 'time' (the time column), "
                          "not both")

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..valvetest import StepTestDetails, StepTestReport, step_test_details
+from ..valvetest import StepResult, StepTestDetails, StepTestReport, step_test_details
 from . import historian
-from ._common import Subparsers, pyplot
+from ._common import Subparsers, UsageError, pyplot
 
 __all__ = ["add_valve_test"]
 
@@ -42,7 +42,13 @@ def add_valve_test(sub: Subparsers) -> None:
                    "(default: t, time, timestamp, datetime, date time or date)")
     g.add_argument("--ts", type=float, default=None, help="sample time, s (no time column)")
     p.add_argument("--process", choices=("auto", "self-regulating", "integrating"),
-                   default="auto", help="PV's process (default auto: told from the data)")
+                   default="auto", help="PV's process: self-regulating (PV settles after a "
+                   "step: flow, pressure, temperature), integrating (PV ramps: a level); "
+                   "default auto, told from the data")
+    p.add_argument("--kp", type=float, default=None, help="PV's process gain, PV units per "
+                   "OP unit (per s for an integrating process): PV's changes are read as the "
+                   "valve's travel through it (default: read from the steps that moved the "
+                   "valve; not with --position)")
     p.add_argument("--op-range", dest="op_range", nargs=2, type=float, metavar=("LO", "HI"),
                    default=None, help="OP at 0 %% and 100 %% valve span, to report sizes in %% "
                    "of span (default: OP units)")
@@ -63,8 +69,11 @@ def _read(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, float, list
 def _cmd_valve_test(args: argparse.Namespace) -> int:
     op, y, ts, notes = _read(args)
     op_range = None if args.op_range is None else tuple(args.op_range)
+    if args.kp is not None and args.position is not None:
+        raise UsageError("--kp is PV's process gain: the valve position is read in OP's "
+                         "units without it (drop --kp, or read PV with --pv)")
     d = step_test_details(op, y, ts, source="position" if args.position else "pv",
-                          process=args.process, op_range=op_range)
+                          process=args.process, op_range=op_range, kp=args.kp)
     r = d.report
     if args.json:
         out = r.to_dict()
@@ -86,18 +95,27 @@ def _fmt(x: float | None, spec: str = ".3g") -> str:
 def _band(name: str, value: float | None, bounds: tuple[float, float], unit: str) -> str:
     lo, hi = bounds
     if value is None:
-        return f"{name:<11} not measured: no move bounded it (more than {lo:.3g} {unit})"
+        more = f" (more than {lo:.3g} {unit})" if lo > 0 else ""
+        return f"{name:<11} not measured: no move bounded it{more}"
     if value == 0.0:
         return f"{name:<11} none seen (below the smallest step, {hi:.3g} {unit})"
     shown = f"{lo:.3g} .. {hi:.3g}" if math.isfinite(hi) else f"more than {lo:.3g}"
     return f"{name:<11} {value:.3g} {unit} ({shown})"
 
 
+def _moved(s: StepResult) -> str:
+    return "?" if s.moved is None else "yes" if s.moved else "no"
+
+
 def _text(r: StepTestReport, notes: list[str]) -> str:
     src = "valve position" if r.source == "position" else f"PV ({r.process})"
-    moved = sum(s.moved for s in r.steps)
-    lines = [f"step test: {len(r.steps)} steps, {moved} moved the valve; response read from "
-             f"{src}: dead time {r.dead_time_s:.3g} s, lag {r.lag_s:.3g} s"
+    moved = sum(s.moved is True for s in r.steps)
+    unread = sum(s.moved is None for s in r.steps)
+    lines = [f"step test: {len(r.steps)} steps, {moved} moved the valve"
+             + (f", {unread} cannot be read (?)" if unread else "")
+             + f"; response read from {src}"
+             + (f": dead time {r.dead_time_s:.3g} s, lag {r.lag_s:.3g} s"
+                if r.dead_time_s is not None and r.lag_s is not None else "")
              + (f", gain {r.gain:.3g} per {r.unit.replace('OP units', 'OP unit')}"
                 if r.gain is not None else ""),
              _band("dead band:", r.deadband, r.deadband_bounds, r.unit),
@@ -107,7 +125,7 @@ def _text(r: StepTestReport, notes: list[str]) -> str:
              f"{'dead s':>7} {'T63 s':>7} {'T86 s':>7} {'overshoot':>9}"]
     for s in r.steps:
         over = "-" if s.overshoot is None else f"{100 * s.overshoot:.0f} %"
-        lines.append(f"{s.time_s:9.0f} {s.op_step:8.3g} {'yes' if s.moved else 'no':>5} "
+        lines.append(f"{s.time_s:9.0f} {s.op_step:8.3g} {_moved(s):>5} "
                      f"{_fmt(s.travel if s.moved else None):>8} {_fmt(s.gain, '.2f'):>6} "
                      f"{_fmt(s.dead_time_s, '.1f'):>7} {_fmt(s.t63_s, '.1f'):>7} "
                      f"{_fmt(s.t86_s, '.1f'):>7} {over:>9}")
@@ -125,8 +143,11 @@ def _plot(path: Path, d: StepTestDetails, op: np.ndarray, y: np.ndarray, ts: flo
     ax2.plot(t, d.moves.model, "r--", lw=0.8, label="fitted response")
     at = d.holds.step_at[1:] * ts
     ax1.plot(at[d.moved], d.holds.level[1:][d.moved], "kv", label="the valve moved")
-    ax1.plot(at[~d.moved], d.holds.level[1:][~d.moved], "x", color="0.5",
-             label="it did not")
+    still = ~d.moved & ~d.reading.unread
+    ax1.plot(at[still], d.holds.level[1:][still], "x", color="0.5", label="it did not")
+    if d.reading.unread.any():
+        ax1.plot(at[d.reading.unread], d.holds.level[1:][d.reading.unread], "o",
+                 mfc="none", color="0.5", label="cannot be read")
     ax1.set_ylabel("OP")
     ax2.set_ylabel("position" if r.source == "position" else "PV")
     ax2.set_xlabel("s")

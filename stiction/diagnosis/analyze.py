@@ -4,7 +4,8 @@ The path of a window: the data-quality gates (:mod:`.quality`, :mod:`.responding
 cycle (:func:`stiction.signal.cycle.find_cycle`); whether the window holds enough of its loop
 to judge (:mod:`.enough`); every registered detector (:mod:`.evidence`,
 :mod:`stiction.detectors.registry`); one confidence from what they saw (:mod:`.features`, the
-learned :mod:`.model`); when it says stiction, the size (:mod:`stiction.quantify.route`);
+learned :mod:`.model`); a call of stiction only where a test says stiction (the evidence gate,
+:mod:`.gate`); when it says stiction, the size (:mod:`stiction.quantify.route`);
 the reason in words (:mod:`.reasons`). A window found calm in which a live PV held within
 its noise while OP ramped on is a valve not responding
 (:func:`.responding.held_while_op_ran`); one too short to judge is ``bad_data``, saying what
@@ -30,14 +31,16 @@ from ..quantify.hewang import Quantification, quantify
 from ..quantify.route import FittedValve, limit_cycle, size_valve
 from ..quantify.travel import Travel, measure_travel
 from ..signal.cycle import Cycle, find_cycle
+from . import gate
 from . import model as learned
 from .enough import SEE_CYCLES, movement_scales, too_short
 from .evidence import Findings, gather
 from .features import features
 from .quality import check_quality
-from .reasons import not_stiction, size_text, stiction_head
+from .reasons import not_stiction, size_text, stiction_head, too_fast_to_see, unbacked_text
 from .responding import held_while_op_ran
-from .travel import apply_travel
+from .setpoint import SetpointCut, steady_stretch
+from .travel import apply_travel, frozen_reading
 
 __all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
 
@@ -132,6 +135,7 @@ def analyze(
     op_range: tuple[float, float] | None = None,
     k: float = 1.99,
     position: ArrayLike | None = None,
+    sp: ArrayLike | None = None,
 ) -> Assessment:
     """Decide whether one window of a loop oscillates, whether stiction causes it, and size it.
 
@@ -169,6 +173,11 @@ def analyze(
         ``valve_not_responding``); where it is not (all NaN, too gappy, a valve that never
         reversed) the verdict is OP and PV's, as without it. The evidence ``travel`` says
         which source decided.
+    sp
+        The loop's setpoint, sampled with OP; optional. Where it steps, the window is judged
+        on its longest stretch between the steps, never across one (a setpoint step is not
+        the valve's jump: :mod:`.setpoint`), and the reason says which samples; a setpoint
+        that moves continuously (a cascade's) leaves the window whole, with a warning.
 
     Returns
     -------
@@ -184,7 +193,7 @@ def analyze(
         An argument is unusable (non-numeric data, unequal lengths, ts <= 0, ...).
     """
     return analyze_details(op, pv, ts=ts, kp=kp, delay=delay, process=process,
-                           op_range=op_range, k=k, position=position).assessment
+                           op_range=op_range, k=k, position=position, sp=sp).assessment
 
 
 def analyze_details(
@@ -199,25 +208,59 @@ def analyze_details(
     k: float = 1.99,
     force_quantify: bool = False,
     position: ArrayLike | None = None,
+    sp: ArrayLike | None = None,
 ) -> Details:
     """:func:`analyze` with its intermediate results. ``force_quantify`` runs the
     quantification even when detection does not say stiction (as the paper's Table 6 does
     for every row); the verdict is unchanged and the sizes are then left out of the
-    assessment but available in ``Details.quantification``. ``position``: as for
-    :func:`analyze`."""
+    assessment but available in ``Details.quantification``. ``position``, ``sp``: as for
+    :func:`analyze` (``Details.start`` is then the judged stretch's first sample)."""
     op_a, pv_a, ts_, kp_, delay_, span, k_ = _validate(
         op, pv, ts=ts, kp=kp, delay=delay, process=process, op_range=op_range, k=k)
-    pos_a = None if position is None else _series("position", position)
-    if pos_a is not None and pos_a.size != op_a.size:
-        raise ParameterError("position", f"must have the same length as op ({pos_a.size} != "
-                                         f"{op_a.size})")
-    d = _op_pv(op_a, pv_a, ts=ts_, kp=kp_, delay=delay_, span=span, k=k_,
-               integrating=process == "integrating", force_quantify=force_quantify)
+    pos_a = _along("position", position, op_a.size)
+    sp_a = _along("sp", sp, op_a.size)
+    cut = None if sp_a is None else steady_stretch(sp_a, pv_a)
+    if cut is not None and cut.cuts:
+        op_a, pv_a = op_a[cut.start:cut.stop], pv_a[cut.start:cut.stop]
+        pos_a = None if pos_a is None else pos_a[cut.start:cut.stop]
+    d = _judged(op_a, pv_a, pos_a, ts=ts_, kp=kp_, delay=delay_, span=span, k=k_,
+                integrating=process == "integrating", force_quantify=force_quantify)
+    return d if cut is None else _cut_said(d, cut, ts_)
+
+
+def _along(name: str, value: ArrayLike | None, n: int) -> FloatArray | None:
+    """An optional series sampled with OP (``n`` samples), validated."""
+    arr = None if value is None else _series(name, value)
+    if arr is not None and arr.size != n:
+        raise ParameterError(name, f"must have the same length as op ({arr.size} != {n})")
+    return arr
+
+
+def _cut_said(d: Details, cut: SetpointCut, ts: float) -> Details:
+    """``d`` of the stretch ``cut`` chose, its reason (or, for a moving setpoint, its
+    warnings) saying so."""
+    a = d.assessment
+    if not cut.cuts:
+        a = dataclasses.replace(a, warnings=(*a.warnings, cut.sentence(ts)))
+        return dataclasses.replace(d, assessment=a)
+    said = cut.sentence(ts)
+    sep = " " if a.reason.endswith(".") else ". "
+    a = dataclasses.replace(a, reason=f"{a.reason}{sep}{said[0].upper()}{said[1:]}.")
+    return dataclasses.replace(d, assessment=a, start=d.start + cut.start)
+
+
+def _judged(op_a: FloatArray, pv_a: FloatArray, pos_a: FloatArray | None, *, ts: float,
+            kp: float | None, delay: float, span: float | None, k: float, integrating: bool,
+            force_quantify: bool) -> Details:
+    """The diagnosis of one stretch: OP and PV's, then the valve's travel where a position
+    was given."""
+    d = _op_pv(op_a, pv_a, ts=ts, kp=kp, delay=delay, span=span, k=k,
+               integrating=integrating, force_quantify=force_quantify)
     if pos_a is None:
         return d
-    travel = measure_travel(op_a, pos_a, k=k_, span=span)
+    travel = frozen_reading(measure_travel(op_a, pos_a, k=k, span=span), pv_a)
     return dataclasses.replace(d, assessment=apply_travel(d.assessment, travel, span=span,
-                                                          k=k_), travel=travel)
+                                                          k=k), travel=travel)
 
 
 def _op_pv(op_a: FloatArray, pv_a: FloatArray, *, ts: float, kp: float | None, delay: float,
@@ -281,10 +324,17 @@ def _decide(op_c: FloatArray, pv_c: FloatArray, cycle: Cycle, found: Findings, *
                                        reach_s=op_c.size / SEE_CYCLES * ts)
         return Details(Assessment(verdict, reason, warnings=warnings, **base),
                        op_c, pv_c, quant, cycle, found, parts)
+    why_not = gate.unbacked({e.test: e.vote for e in found.evidence},
+                            too_fast=too_fast_to_see(cycle))
+    if why_not is not None:  # no evidence about the valve says stiction: at most undetermined
+        reason = unbacked_text(conf, why_not, found.evidence, parts, cycle)
+        return Details(Assessment(Verdict.UNDETERMINED, reason, warnings=warnings, **base),
+                       op_c, pv_c, quant, cycle, found, parts)
 
     size = size_valve(op_c, pv_c, cycle, quant=quant, ts=ts, kp=kp, delay=delay,
                       integrating=integrating, k=k, pv_noise=found.noise[1],
-                      fitted_valve=_fitted_valve(found), ellipse_band=_ellipse_band(found))
+                      fitted_valve=_fitted_valve(found), ellipse_band=_ellipse_band(found),
+                      span=span)
     warnings = (*warnings, *size.warnings)
     head = stiction_head(conf, found.evidence, parts, cycle)
     if size.fd_op is None:

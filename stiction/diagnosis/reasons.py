@@ -38,6 +38,8 @@ __all__ = [
     "size_text",
     "stiction_head",
     "too_fast",
+    "too_fast_to_see",
+    "unbacked_text",
     "votes_said",
     "weighed",
 ]
@@ -101,12 +103,26 @@ def stiction_head(conf: float, evidence: tuple[Evidence, ...], parts: Mapping[st
     return f"stiction, confidence {conf:.2f}. {decided(evidence, parts)}{too_fast(cycle)}"
 
 
+def too_fast_to_see(cycle: Cycle) -> bool:
+    """Whether the cycle is too fast for its shape to be seen (fewer than ``MIN_PERIOD``
+    samples a period)."""
+    return cycle.period is not None and cycle.period < MIN_PERIOD
+
+
 def too_fast(cycle: Cycle) -> str:
     """A sentence when the cycle is too fast for its shape to be seen, else ''."""
-    if cycle.period is not None and cycle.period < MIN_PERIOD:
+    if cycle.period is not None and too_fast_to_see(cycle):
         return (f" The cycle of {cycle.period:.1f} samples is too fast to see its shape: "
                 "sample faster.")
     return ""
+
+
+def unbacked_text(conf: float, why: str, evidence: tuple[Evidence, ...],
+                  parts: Mapping[str, float], cycle: Cycle) -> str:
+    """The reason of a window the decision put at ``stiction`` and the evidence gate
+    (:mod:`.gate`) did not: ``why`` says which rule it failed."""
+    return (f"undetermined, confidence of stiction {conf:.2f}, but {why}: a call of stiction "
+            f"needs a test that says so. {decided(evidence, parts)}{too_fast(cycle)}")
 
 
 def size_text(fd: float, fs: float | None, unit: str, method: str, *, need_kp: bool) -> str:

@@ -11,25 +11,57 @@ finding replaces what OP and PV suggest, since it is a measurement of the valve 
   is no oscillation to explain); the confidence is again the share of sticking reversals;
 * it does **not respond** (OP ran, the valve held): ``valve_not_responding``;
 * the travel cannot tell (no usable position, a calm loop the valve never reversed in): the
-  OP/PV diagnosis unchanged.
+  OP/PV diagnosis;
+* the position did not show it is the valve's (:func:`stiction.quantify.travel.
+  shown_as_position`: it moves against OP, in another scale, or lags OP by more than two
+  samples; or it held while OP ran and PV moved, a frozen reading of a valve that moves):
+  the OP/PV diagnosis, never a verdict from it.
 
-Every case adds one :class:`~stiction.Evidence`, ``travel`` (value: the band in OP units,
-vote +1 sticks / -1 follows / 0), whose note begins with the source that decided the
-verdict: ``decided by the valve's travel`` or ``decided by OP and PV``.
+A position is evidence only after it has shown it is one (issue 35: an inverted one read
+``no_stiction`` 0.0 on a very sticky valve, PV wired in as the position ``stiction`` 1.0 on a
+good one). Every case adds one :class:`~stiction.Evidence`, ``travel`` (value: the band in
+OP units, vote +1 sticks / -1 follows / 0), whose note begins with the source that decided
+the verdict: ``decided by the valve's travel`` or ``decided by OP and PV``; and sets
+``Assessment.position_use`` (``used``, ``could_not_tell``, ``not_a_position``). Where the
+position was not used the reason ends by saying so and why.
 """
 
 from __future__ import annotations
 
 import dataclasses
 
-from .._assessment import Assessment, Evidence, Verdict
-from ..quantify.travel import FOLLOWS, NOT_RESPONDING, STICKS, Travel
+import numpy as np
 
-__all__ = ["BY_OP_PV", "BY_TRAVEL", "MEASURED", "apply_travel"]
+from .._assessment import Assessment, Evidence, Verdict
+from .._validate import FloatArray
+from ..quantify.travel import FOLLOWS, NOT_A_POSITION, NOT_RESPONDING, STICKS, Travel
+from ..signal.noise import noise_sd
+from .responding import HELD_NOISE, M
+
+__all__ = ["BY_OP_PV", "BY_TRAVEL", "MEASURED", "NOT_USED", "apply_travel", "frozen_reading"]
 
 MEASURED = "measured from the valve's travel"
 BY_TRAVEL = "decided by the valve's travel"
 BY_OP_PV = "decided by OP and PV"
+NOT_USED = "The valve's position was not used"
+
+
+def frozen_reading(travel: Travel, pv: FloatArray) -> Travel:
+    """``travel`` as :data:`NOT_A_POSITION` where it says the valve did not respond while PV,
+    over the same samples, moved beyond its noise (its ``M``-sample means spread more than
+    ``HELD_NOISE`` noise SDs, :mod:`.responding`'s test of a PV held): a valve that moved PV
+    moved, so the reading is frozen; else ``travel`` unchanged."""
+    if travel.status != NOT_RESPONDING:
+        return travel
+    tail = pv[travel.still_from:]
+    means = tail[: (tail.size // M) * M].reshape(-1, M).mean(axis=1)
+    sd = noise_sd(pv)
+    if means.size < 2 or float(np.ptp(means)) <= HELD_NOISE * sd:
+        return travel
+    return dataclasses.replace(travel, status=NOT_A_POSITION, note=(
+        f"not used as the valve's position: it held while OP ran and PV moved "
+        f"{np.ptp(means):.3g} ({np.ptp(means) / sd:.0f} of its noise SDs) over the same "
+        f"{tail.size} samples (a frozen reading of a valve that moves)"))
 
 
 def _evidence(a: Assessment, travel: Travel, source: str) -> tuple[Evidence, ...]:
@@ -39,7 +71,19 @@ def _evidence(a: Assessment, travel: Travel, source: str) -> tuple[Evidence, ...
 
 def apply_travel(a: Assessment, travel: Travel, *, span: float | None, k: float
                  ) -> Assessment:
-    """``a`` (the OP/PV assessment) as the valve's travel decides it (module doc)."""
+    """``a`` (the OP/PV assessment) as the valve's travel decides it (module doc); a
+    ``travel`` not yet checked against PV passes :func:`frozen_reading` first."""
+    if not travel.decides:
+        use = "not_a_position" if travel.status == NOT_A_POSITION else "could_not_tell"
+        note = travel.note.removeprefix("not used as the valve's position: ")
+        sep = " " if a.reason.endswith(".") else ". "
+        return dataclasses.replace(a, evidence=_evidence(a, travel, BY_OP_PV),
+                                   reason=f"{a.reason}{sep}{NOT_USED}: {note}.",
+                                   position_use=use)
+    return dataclasses.replace(_decided(a, travel, span=span, k=k), position_use="used")
+
+
+def _decided(a: Assessment, travel: Travel, *, span: float | None, k: float) -> Assessment:
     if travel.status == STICKS:
         return _sticks(a, travel, span=span, k=k)
     if travel.status == FOLLOWS and a.verdict != Verdict.NOT_OSCILLATING:
@@ -57,7 +101,7 @@ def apply_travel(a: Assessment, travel: Travel, *, span: float | None, k: float
                           oscillating=a.oscillating, period_s=a.period_s,
                           stiction_index=a.stiction_index, warnings=a.warnings,
                           evidence=_evidence(a, travel, BY_TRAVEL))
-    return dataclasses.replace(a, evidence=_evidence(a, travel, BY_OP_PV))
+    return dataclasses.replace(a, evidence=_evidence(a, travel, BY_OP_PV))  # calm: OP/PV's
 
 
 def _sticks(a: Assessment, travel: Travel, *, span: float | None, k: float) -> Assessment:

@@ -1,6 +1,12 @@
 """Which sizing applies to a window called sticky: the He-Wang reading of a clean limit
 cycle first, then the sticky valve fitted to PV, then the OP-PV ellipse's band, then the
-fitted valve where its fit did not decide; unsized, why."""
+fitted valve where its fit did not decide; unsized, why.
+
+A size is physical or not published: no valve's friction or jump exceeds its whole span,
+so where ``span`` (the OP range of 0 .. 100 % of span) is known, sizes beyond it are
+withheld and the reason says which input is inconsistent (:func:`beyond_span`): the
+process gain ``kp`` or the process type, through which the jump is read from PV, or the
+OP range itself, against which the OP swing is read."""
 
 from __future__ import annotations
 
@@ -11,7 +17,7 @@ from ..signal.cycle import MIN_CYCLES, Cycle
 from ..signal.oscillation import MIN_PERIOD
 from .hewang import Quantification, quantify
 
-__all__ = ["FittedValve", "Size", "limit_cycle", "size_valve"]
+__all__ = ["FittedValve", "Size", "beyond_span", "limit_cycle", "size_valve"]
 
 
 def limit_cycle(cycle: Cycle, n: int) -> bool:
@@ -47,6 +53,54 @@ class FittedValve:
 
 
 def size_valve(op: FloatArray, pv: FloatArray, cycle: Cycle, *, quant: Quantification | None,
+               ts: float, kp: float | None, delay: float, integrating: bool, k: float,
+               pv_noise: float, fitted_valve: FittedValve | None,
+               ellipse_band: float | None, span: float | None = None) -> Size:
+    """:func:`first_size`, withheld where it exceeds ``span`` (:func:`beyond_span`)."""
+    size = first_size(op, pv, cycle, quant=quant, ts=ts, kp=kp, delay=delay,
+                      integrating=integrating, k=k, pv_noise=pv_noise,
+                      fitted_valve=fitted_valve, ellipse_band=ellipse_band)
+    why = beyond_span(size, span, cycle=cycle, kp=kp, integrating=integrating, ts=ts)
+    if why is None:
+        return size
+    return Size(None, None, None, 0, why, size.multi_jump, size.warnings, size.quant)
+
+
+def beyond_span(size: Size, span: float | None, *, cycle: Cycle, kp: float | None,
+                integrating: bool, ts: float) -> str | None:
+    """Why ``size`` cannot be the valve's (a figure beyond 100 % of ``span``), naming the
+    input that is inconsistent; None where it fits (or no span is known). The jump (and fs,
+    which holds it) is read from PV through ``kp``: too large a jump is ``kp`` too small, or
+    an integrating process (a level) read as self-regulating, which reads PV's ramps
+    between the jumps as a settling towards a far-off level (the half cycles' time
+    constant then outlasts them). fd alone too large is the OP swing itself against
+    ``span``: the OP range is wrong."""
+    if span is None:
+        return None
+    figures = {"fd": size.fd_op, "fs": size.fs_op, "jump": size.jump_op}
+    over = {k: 100.0 * v / span for k, v in figures.items() if v is not None and v > span}
+    if not over:
+        return None
+    shown = ", ".join(f"{k} {v:.4g} %" for k, v in over.items())
+    head = (f"the sizes read ({shown} of span) exceed the valve's whole span, so "
+            "an input is inconsistent: ")
+    if "fd" in over and size.fs_op is None:
+        return head + ("the OP swing between the valve's jumps is wider than the OP range "
+                       "given for 0 .. 100 % of span: check op_range (and OP's units)")
+    sw = size.quant.switches if size.quant is not None else None
+    half = None if cycle.period is None else cycle.period / 2.0
+    if not integrating and sw is not None and sw.tau is not None and half is not None \
+            and sw.tau > half:
+        return head + (f"PV ramps between the jumps (its fitted time constant, "
+                       f"{sw.tau * ts:.4g} s, outlasts the half cycle, {half * ts:.3g} s): "
+                       "likely an integrating process (a level) read as self-regulating, so "
+                       f"give process integrating, or check kp ({kp:g})")
+    return head + (f"the valve's jump is read from PV through kp ({kp:g}), and kp is likely "
+                   "wrong (too small, or for an integrating process not in PV units per s "
+                   "per OP unit), or the process type is: check kp and process")
+
+
+def first_size(op: FloatArray, pv: FloatArray, cycle: Cycle, *, quant: Quantification | None,
                ts: float, kp: float | None, delay: float, integrating: bool, k: float,
                pv_noise: float, fitted_valve: FittedValve | None,
                ellipse_band: float | None) -> Size:

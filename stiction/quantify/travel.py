@@ -45,6 +45,27 @@ follows a slow ramp in steps smaller than its noise still moves). From the moves
 * otherwise (a calm loop, a position without usable samples) the travel cannot tell, and
   the caller keeps what OP and PV say.
 
+**A position** is evidence only after it has shown it is one (issue 35: read inverted, PV
+wired in its place, as a 0-1 fraction or a few samples late, it gave confident verdicts the
+other way): where the valve sticks or follows, the reading is :data:`NOT_A_POSITION`
+(the caller keeps OP and PV's verdict, and says why) unless
+
+* it moves **with OP's direction**: at least ``WITH_OP`` of its moves (after the first) go
+  the way OP, read on its trend, went since the move before (a valve moves only where OP
+  pushes it; measured 0.94-1.0 on He's, Choudhury's and Kano's valves, 0-0.29 inverted or
+  PV in its place);
+* **in OP's scale**: its travel over its moves per OP unit OP travelled between them lies in
+  ``SCALE`` (a sticky valve jumps a part of the band OP crossed, a following one all of it:
+  0.05-1.05 measured; a 0-1 fraction of a percentage 0.001-0.01);
+* **without a lag** over ``MAX_LAG`` samples (:func:`_lag`): read that much later than OP,
+  a following valve shows a band of OP's travel over the lag. A lag is told where OP, read
+  so much earlier, clearly matches the position; it only rejects a sticky reading whose band
+  the lag explains (read so, the valve follows). A sticky valve's position read late is still
+  used: its band is then larger by OP's travel over the lag.
+
+The caller checks a valve that did not respond against PV
+(:func:`stiction.diagnosis.travel.frozen_reading`).
+
 Kano, Maruta, Kugemoto & Shimizu (2004) detect stiction from the valve position the same way
 (stuck intervals while OP moves); Choudhury et al. (2005) define S and J as read here.
 """
@@ -61,12 +82,14 @@ from .._validate import FloatArray
 from ..signal.arrays import median, medians
 from ..signal.noise import noise_sd
 
-__all__ = ["FOLLOWS", "NOT_RESPONDING", "STICKS", "UNUSABLE", "Travel", "measure_travel"]
+__all__ = ["FOLLOWS", "NOT_A_POSITION", "NOT_RESPONDING", "STICKS", "UNUSABLE", "Shown",
+           "Travel", "measure_travel", "shown_as_position"]
 
 STICKS = "sticks"
 FOLLOWS = "follows"
 NOT_RESPONDING = "not_responding"
 UNUSABLE = "unusable"  # the travel cannot tell: the caller keeps OP/PV's diagnosis
+NOT_A_POSITION = "not_a_position"  # it did not show it is the valve's position: OP/PV's too
 
 MOVE_SDS = 6.0  # a move: the position leaves its last level by this many noise SDs
 MIN_SAMPLES = 64
@@ -77,6 +100,47 @@ OP_NOISE = 20.0  # a valve that does not follow: OP ran this many of its noise S
 MIN_SPAN_TRAVEL = 0.05  # ... and 5 % of span, when known
 STILL_SHARE = 0.3  # ... over at least this share of the window since the valve last moved
 MEDIAN = 5  # samples of the running median the position's moves are read from
+WITH_OP = 0.7  # a position: at least this share of its moves go the way OP went since the last
+SCALE = (0.02, 3.0)  # ... and it travels this share of OP's travel between its moves
+MAX_LAG = 2  # ... and read up to this many samples earlier it does not follow where it sticks
+LAG_READ = 10  # the lags tried
+LAG_SPREAD = 0.5  # a lag: OP read so much earlier leaves at most this share of the difference
+
+Moves = tuple[list[int], list[int]]
+"""The samples at which the valve moved and the direction of each move (+1/-1)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Shown:
+    """What the position showed of being one: ``with_op`` the share of its moves (after the
+    first) that went the way OP went since its previous move, ``scale`` its travel over its
+    moves per OP unit OP travelled between them; ``why`` it is not the valve's position
+    (None: it showed it is), a phrase."""
+
+    moves: int
+    with_op: float
+    scale: float
+    why: str | None
+
+
+def shown_as_position(op: FloatArray, filt: FloatArray, moves: Moves) -> Shown:
+    """Whether the position moves with OP's direction, in OP's scale (module doc, "a
+    position"), from its ``moves`` and OP read on its trend (a line through ``TREND``
+    samples up to each move)."""
+    at, way = moves
+    u = np.array([_line_at(op[max(0, i - TREND + 1):i + 1], at_end=True)[0] for i in at])
+    du, dx = np.diff(u), np.diff(filt[np.asarray(at, dtype=np.intp)])
+    with_op = float(np.mean(np.sign(du) == np.asarray(way[1:]))) if du.size else 0.0
+    travel = float(np.abs(du).sum())
+    scale = float(np.abs(dx).sum()) / travel if travel > 0 else float("inf")
+    why = None
+    if with_op < WITH_OP:
+        why = (f"{1 - with_op:.0%} of its {du.size} moves went against OP's travel since the "
+               "one before (inverted, or not the valve's position: PV wired in?)")
+    elif not SCALE[0] <= scale <= SCALE[1]:
+        why = (f"it travels {scale:.3g} times as far as OP between its moves (not in OP's "
+               "units: a 0-1 fraction of a percentage, or another scale?)")
+    return Shown(len(at), with_op, scale, why)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,11 +163,13 @@ class Travel:
     follow_limit: float | None = None
     bands: FloatArray = dataclasses.field(default_factory=lambda: np.empty(0), repr=False)
     slips: FloatArray = dataclasses.field(default_factory=lambda: np.empty(0), repr=False)
+    shown: Shown | None = None  # what the position showed of being one, where it moved
+    still_from: int = 0  # the sample after the valve's last move
 
     @property
     def decides(self) -> bool:
         """Whether the travel decides the verdict (else OP and PV do)."""
-        return self.status != UNUSABLE
+        return self.status not in (UNUSABLE, NOT_A_POSITION)
 
     @property
     def share_sticking(self) -> float:
@@ -180,8 +246,8 @@ def _jump(raw: FloatArray, filt: FloatArray, op: FloatArray, *, i: int, d: int, 
     return d * (_level_after(raw, j, end) - before)
 
 
-def _reversals(op: FloatArray, raw: FloatArray, filt: FloatArray, h: float, k: float
-               ) -> tuple[FloatArray, FloatArray, int]:
+def _reversals(op: FloatArray, raw: FloatArray, filt: FloatArray, moves: Moves, *,
+               h: float, k: float) -> tuple[FloatArray, FloatArray, int]:
     """Per valve reversal, the band (OP travel between the last move one way and the first
     move back) and the slip (the jump of that first move back), OP units; and the sample
     after the valve's last move (0: it never moved).
@@ -190,7 +256,7 @@ def _reversals(op: FloatArray, raw: FloatArray, filt: FloatArray, h: float, k: f
     from there to where it rested (a valve that follows OP goes on up to ``h`` after the
     trigger, OP with it): its level at the trigger against the mean of the raw samples
     before the move back."""
-    at, way = _moves(filt, h)
+    at, way = moves
     bands: list[float] = []
     slips: list[float] = []
     for m in range(1, len(at)):
@@ -245,8 +311,39 @@ def measure_travel(op: ArrayLike, position: ArrayLike, *, k: float = 1.0,
     sd_u, sd_x = noise_sd(op_f), noise_sd(pos_f)
     scale = max(float(np.ptp(op_f)), float(np.ptp(pos_f)), 1e-12)
     h = max(MOVE_SDS * sd_x, 1e-6 * scale)
-    bands, slips, still_from = _reversals(op_f, pos_f, running_median(pos_f), h, k)
-    return _judge(op_f, bands, slips, still_from=still_from, h=h, sd_u=sd_u, k=k, span=span)
+    filt = running_median(pos_f)
+    moves = _moves(filt, h)
+    bands, slips, still_from = _reversals(op_f, pos_f, filt, moves, h=h, k=k)
+    t = _judge(op_f, bands, slips, still_from=still_from, h=h, sd_u=sd_u, k=k, span=span)
+    if t.status not in (STICKS, FOLLOWS):
+        return t
+    shown = shown_as_position(op_f, filt, moves)
+    lag = None if shown.why is not None else _lag(op_f, pos_f)
+    if lag is not None and t.status == STICKS:  # a band that the lag does not explain stays
+        bands = _reversals(np.concatenate((np.full(lag, op_f[0]), op_f[:-lag])), pos_f, filt,
+                           moves, h=h, k=k)[0]
+        lag = lag if bands.size >= 2 and median(bands) <= (t.follow_limit or 0.0) else None
+    why = shown.why if lag is None else (
+        f"it lags OP by about {lag} samples, more than {MAX_LAG} (read so much earlier it "
+        "follows OP: a band it shows is that lag, not friction)")
+    if why is None:
+        return dataclasses.replace(t, shown=shown)
+    return Travel(NOT_A_POSITION, f"not used as the valve's position: {why}",
+                  reversals=t.reversals, follow_limit=t.follow_limit, shown=shown)
+
+
+def _lag(op: FloatArray, raw: FloatArray) -> int | None:
+    """The position's lag behind OP, in samples, where it is clear: the shift at which OP,
+    read that much earlier, is closest to the position (the least variance of their
+    difference), where that is over ``MAX_LAG``, short of ``LAG_READ`` (a sticky valve's
+    position trails OP by a part of its cycle, and the variance falls on up to the longest
+    shift tried) and leaves at most ``LAG_SPREAD`` of the difference unshifted; else None."""
+    n = op.size
+    spread = [float(np.var(op[: n - lag] - raw[lag:])) for lag in range(LAG_READ + 1)]
+    lag = int(np.argmin(spread))
+    if lag <= MAX_LAG or lag == LAG_READ or spread[lag] > LAG_SPREAD * spread[0]:
+        return None
+    return lag
 
 
 def _judge(op: FloatArray, bands: FloatArray, slips: FloatArray, *, still_from: int,
@@ -260,7 +357,8 @@ def _judge(op: FloatArray, bands: FloatArray, slips: FloatArray, *, still_from: 
         if tail.size >= STILL_SHARE * op.size and float(np.ptp(tail)) >= need:
             return Travel(NOT_RESPONDING, f"OP travelled {np.ptp(tail):.3g} OP units over "
                           f"{tail.size} samples while the valve's position held within its "
-                          f"noise", reversals=int(bands.size), follow_limit=limit)
+                          f"noise", reversals=int(bands.size), follow_limit=limit,
+                          still_from=still_from)
         return Travel(UNUSABLE, f"the valve reversed {bands.size} times: too few to measure "
                       f"its band", reversals=int(bands.size), follow_limit=limit)
     band, slip = median(bands), max(median(slips), 0.0)

@@ -20,6 +20,7 @@ takes no part: ``PlantLoop(valve=False)``).
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -126,7 +127,12 @@ class PlantRecord:
 
 
 def _lag(tau: FloatArray, ts: float) -> FloatArray:
-    return np.asarray(np.exp(-ts / np.maximum(tau, 1e-9)), dtype=np.float64)
+    """The discrete first-order lags' poles, exp(-ts / tau), by the C library's ``exp``
+    one at a time: numpy's vector ``exp`` differs in the last bit on processors with AVX-512,
+    and a sticky valve's limit cycle grows that bit into another trajectory (the demo's
+    plant ran differently on AMD EPYC machines, issue 35)."""
+    return np.array([math.exp(-ts / max(float(t), 1e-9)) for t in np.ravel(tau)],
+                    dtype=np.float64).reshape(np.shape(tau))
 
 
 @dataclasses.dataclass

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as v
+from .._errors import ParameterError
 from .._validate import FloatArray
 from ..models.simulate import LoopBank, LoopParams
 
@@ -74,9 +75,15 @@ def simulate_step_test(valve: Any, levels: ArrayLike, *, hold: int, ts: float = 
                        n: int = 1, kp: ArrayLike = 1.0, tau: ArrayLike = 10.0,
                        theta: ArrayLike = 0.0, integrating: ArrayLike = False,
                        noise_sd: ArrayLike = 0.0, position_noise_sd: float = 0.0,
-                       seed: int = 0) -> StepTestRun:
+                       seed: int = 0, ramp: int = 1) -> StepTestRun:
     """``n`` loops (parameters scalars or arrays of ``n``; ``valve``'s likewise) step-tested
-    with ``levels`` (% of span, the first the operating point), ``hold`` samples each."""
+    with ``levels`` (% of span, the first the operating point), ``hold`` samples each.
+    ``ramp``: samples each step takes (OP moves in equal parts, as an operator ramping
+    it by hand; 1, the default, an instant step); the level is reached at the ramp's last
+    sample, so a hold of ``hold`` samples includes it."""
+    if int(ramp) != ramp or not 1 <= ramp <= hold:
+        raise ParameterError("ramp", f"must be a whole number of samples from 1 to hold "
+                             f"({hold}), was {ramp!r}")
     lv = v.finite("levels", levels).reshape(-1)
     params = LoopParams(kp=kp, tau=tau, theta=theta, integrating=integrating,
                         x0=float(lv[0]) / 100.0, noise_sd=noise_sd, kc=0.0)
@@ -85,8 +92,10 @@ def simulate_step_test(valve: Any, levels: ArrayLike, *, hold: int, ts: float = 
     op, pv, vp = (np.empty((n, rows)) for _ in range(3))
     ends: list[Any] = []  # the valve state at the end of each hold
     for i, level in enumerate(lv):
+        before = lv[max(i - 1, 0)]
         for j in range(int(hold)):
-            out = bank.step(manual=np.full(n, level / 100.0))
+            u = level if j + 1 >= ramp else before + (level - before) * (j + 1) / ramp
+            out = bank.step(manual=np.full(n, u / 100.0))
             k = i * int(hold) + j
             op[:, k], pv[:, k], vp[:, k] = out.op, out.pv, out.vp
         ends.append(bank.valve_state)

@@ -13,7 +13,9 @@ manual. Each module's docstring says which definition it uses:
   valve moved at each step;
 * :mod:`.bands`: dead band, resolution and slip from which steps moved it;
 * :mod:`.timing`: dead time, T63, T86 and overshoot of each step;
-* :mod:`.sequence`: the OP sequence to play (the simulated PLC's, and our advice).
+* :mod:`.reading`: which steps moved the valve, which did not, which cannot be read;
+* :mod:`.sequence`: the OP sequences to play (a few small steps, as the simulated PLC and
+  an operator play them; the thorough staircase of a simulator).
 
 The valve's response may be read from PV (through the process: its gain, lag and dead time
 are identified from the recording) or from the valve position where a positioner reports
@@ -31,7 +33,8 @@ from .analyze import (
     step_test_details,
 )
 from .holds import NotAStepTest
-from .sequence import hold_series, step_test_levels
+from .sequence import hold_series, operator_levels, step_test_levels
 
 __all__ = ["SOURCES", "NotAStepTest", "StepResult", "StepTestDetails", "StepTestReport",
-           "analyze_step_test", "hold_series", "step_test_details", "step_test_levels"]
+           "analyze_step_test", "hold_series", "operator_levels", "step_test_details",
+           "step_test_levels"]

@@ -64,16 +64,19 @@ def test_every_bad_row_is_named_and_skipped(tmp_path: Path) -> None:
         "100), was 'abc'",
         "findings.csv: line 8: loop LIC201: column 'date': 2030-01-01 is in the future",
         "findings.csv: line 9 has 3 cells, the header has 7: make the row one cell per "
-        "column (an empty cell for an empty value)",
+        "column (an empty cell for an empty value; a cell holding the delimiter or a line "
+        "break in double quotes)",
         "findings.csv: line 10: column 'loop': required, but empty",
         "findings.csv: line 11: loop FIC101: repeats line 2")
     assert got.readable  # type: ignore[attr-defined]
 
 
 @pytest.mark.parametrize(("text", "problem"), [
-    ("", "findings.csv: no header row (columns: loop, date, finding, fd, fs, by, note)"),
+    ("", "findings.csv: no header row (columns: loop, date, finding, fd, fs, deadband, "
+         "resolution, by, note)"),
     ("loop,when,finding\nFIC101,2024-03-05,ok\n",
-     "findings.csv: line 1: unknown column 'when' (known: loop, date, finding, fd, fs, by, "
+     "findings.csv: line 1: unknown column 'when' (known: loop, date, finding, fd, fs, "
+     "deadband, resolution, by, "
      "note)"),
     ("loop,finding\nFIC101,ok\n", "findings.csv: line 1: missing column(s) 'date'"),
 ])
@@ -87,11 +90,64 @@ def test_a_file_without_a_usable_header_is_not_read(tmp_path: Path, text: str,
 def test_missing_and_undecodable_files_are_not_read(tmp_path: Path) -> None:
     got = read_findings(tmp_path / "nope.csv", LOOPS, today=TODAY)
     assert not got.readable and "cannot read" in got.problems[0]
-    p = tmp_path / "latin.csv"
-    p.write_bytes(b"loop,date,finding\nFIC101,2024-03-05,ok\nTIC301,2024-03-05,ok,\xb0\n")
+    p = tmp_path / "garbage.csv"  # 0x81 and 0x8d are neither UTF-8 nor Windows-1252
+    p.write_bytes(b"loop,date,finding\nFIC101,2024-03-05,ok\nTIC301,2024-03-05,ok\x81\x8d\n")
     got = read_findings(p, LOOPS, today=TODAY)
-    assert not got.readable and got.problems == (f"{p}: line 3: not UTF-8 (save the file "
-                                                 "as UTF-8)",)
+    assert not got.readable and got.problems == (f"{p}: line 3: neither UTF-8 nor "
+                                                 "Windows-1252 (save the file as CSV UTF-8)",)
+
+
+# issue 35 item 8: rows as a spreadsheet saves them, each read, none lost
+def test_a_note_over_several_lines_is_one_cell_and_the_next_row_is_read(
+        tmp_path: Path) -> None:
+    got = _read(tmp_path, 'loop,date,finding,fd,fs,by,note\r\n'
+                          'FIC101,2024-03-05,stiction,2.5,3.1,J. Doe,"packing tightened\n'
+                          '# not a comment: the note goes on\n'
+                          '\n'
+                          'positioner recalibrated, see WO 4711"\r\n'
+                          '# a comment between rows\r\n'
+                          'TIC301,2024-03-07,ok,,,J. Doe,cycle from the steam header\r\n')
+    assert got.problems == ()  # type: ignore[attr-defined]
+    fic, tic = got.findings  # type: ignore[attr-defined]
+    assert (fic.line, tic.line) == (2, 7)
+    assert fic.note == ("packing tightened # not a comment: the note goes on  positioner "
+                        "recalibrated, see WO 4711")
+    assert tic.note == "cycle from the steam header"
+
+
+@pytest.mark.parametrize("head", ["sep=;\r\n", '"sep=;"\n', "# exported\nSEP=;\n"])
+def test_an_excel_sep_line_names_the_delimiter(tmp_path: Path, head: str) -> None:
+    got = _read(tmp_path, f"{head}loop;date;finding;fd;fs;by;note\n"
+                          "FIC101;05.03.2024;stiction;2,5;3,1;J. Doe;tightened, retested\n")
+    assert got.problems == ()  # type: ignore[attr-defined]
+    (fic,) = got.findings  # type: ignore[attr-defined]
+    assert (fic.date, fic.fd, fic.fs, fic.note) == (dt.date(2024, 3, 5), 2.5, 3.1,
+                                                   "tightened, retested")
+
+
+def test_windows_1252_and_utf16_text_is_read(tmp_path: Path) -> None:
+    text = "loop;date;finding;fd;fs;by;note\nFIC101;05.03.2024;ok;;;J. Müller;Ventil gängig, 5 °C\n"
+    for name, data in (("cp1252.csv", text.encode("cp1252")),
+                       ("utf16.csv", text.encode("utf-16")),
+                       ("mixed.csv", text.encode("utf-8") + "LIC201;06.03.2024;ok;;;Jörg;\n"
+                        .encode("cp1252"))):
+        p = tmp_path / name
+        p.write_bytes(data)
+        got = read_findings(p, LOOPS, today=TODAY)
+        assert got.problems == (), name
+        assert got.findings[0].by == "J. Müller" and got.findings[0].note.endswith("5 °C")
+    assert [f.by for f in got.findings] == ["J. Müller", "Jörg"]
+
+
+def test_empty_columns_after_the_last_are_ignored(tmp_path: Path) -> None:
+    got = _read(tmp_path, "loop,date,finding,fd,fs,by,note,,\n"
+                          "FIC101,2024-03-05,stiction,2.5,3.1,J. Doe,tightened,,\n"
+                          "TIC301,2024-03-07,ok,,,J. Doe,steam header\n"
+                          "LIC201,2024-03-07,ok,,,J. Doe,feed,,spilled\n")
+    assert [f.loop for f in got.findings] == ["FIC101", "TIC301"]  # type: ignore[attr-defined]
+    assert got.problems == ("findings.csv: line 4 has 9 cells, the header has 7: make the "  # type: ignore[attr-defined]
+                            "row one cell per column (an empty cell for an empty value; a "
+                            "cell holding the delimiter or a line break in double quotes)",)
 
 
 def test_the_config_key_names_a_file_beside_the_config(tmp_path: Path) -> None:

@@ -33,8 +33,9 @@ def a(verdict: Verdict, confidence: float | None = None, reason: str = "r",
 
 def test_a_verdict_near_its_threshold_does_not_chatter() -> None:
     """The demo's sticky level loop: stiction -> undetermined -> stiction -> undetermined ->
-    stiction in 90 s (issue 32). Published: stiction, every round."""
-    f = VerdictFilter(HysteresisSettings(rounds=5, margin=0.5))
+    stiction in 90 s (issue 32). Published: stiction, every round. (Every round counts
+    here: ``band`` 0; a confidence at its threshold is the next test's.)"""
+    f = VerdictFilter(HysteresisSettings(rounds=5, margin=0.5, band=0.0))
     seq = [a(S, 0.88, "first", fd=0.27), a(U, 0.85), a(S, 0.89, "third", fd=0.26), a(U, 0.84),
            a(U, 0.86), a(S, 0.90, "sixth", fd=0.28)]
     out = [f.publish("LIC201", x, float(t)) for t, x in enumerate(seq)]
@@ -126,6 +127,32 @@ def test_a_restored_result_is_held_like_a_published_one() -> None:
     assert f.publish("L", a(N, 0.1), 6.0).verdict == N  # forgotten: a first verdict
 
 
+def test_a_confidence_at_its_threshold_neither_counts_nor_resets() -> None:
+    """The demo's U2.TIC201 on an AMD EPYC machine (issue 35): published undetermined from
+    its filling window, then no_stiction four rounds, then undetermined 0.507 against the
+    threshold 0.5 for one round, which restarted the count, then no_stiction again: the
+    change came only after the window was full. The round at its threshold is not counted,
+    so the change comes in the fifth round that says it."""
+    f = VerdictFilter(HysteresisSettings(rounds=5, margin=0.5, band=0.02))
+    f.publish("TIC201", a(U, 0.70), 0.0)
+    seq = [a(N, 0.25), a(N, 0.46), a(N, 0.36), a(N, 0.32), a(U, 0.507), a(N, 0.21)]
+    out = [f.publish("TIC201", x, float(t)) for t, x in enumerate(seq, 1)]
+    assert [o.verdict for o in out] == [U, U, U, U, U, N]
+    assert out[4].reason == "r"  # the published verdict's own round: its newest numbers
+    # differing at the threshold: held and said, not counted
+    g = VerdictFilter(HysteresisSettings(rounds=2, margin=0.5, band=0.02))
+    g.publish("L", a(N, 0.3), 0.0)
+    held = g.publish("L", a(U, 0.51), 1.0)
+    assert held.verdict == N and "within 0.02 of the decision's threshold 0.5: not " \
+        "counted, published when it holds 2 rounds (0 so far)" in held.reason
+    assert g.publish("L", a(U, 0.6), 2.0).verdict == N  # the first round that counts
+    assert g.publish("L", a(U, 0.6), 3.0).verdict == U
+    # band 0: every round counts, as before
+    h = VerdictFilter(HysteresisSettings(rounds=5, margin=0.5, band=0.0))
+    h.publish("TIC201", a(U, 0.70), 0.0)
+    assert [h.publish("TIC201", x, float(t)).verdict for t, x in enumerate(seq, 1)] == [U] * 6
+
+
 def _raw() -> dict[str, object]:
     return mconfig([memory_device("plc", [[50.0, 20.0]])],
                    [mloop("L", "plc", 0, 0, window_s=400.0)])
@@ -133,14 +160,16 @@ def _raw() -> dict[str, object]:
 
 def test_config_keys() -> None:
     base = _raw()
-    assert parse_config(base).hysteresis == HysteresisSettings(5, 0.5)
-    c = parse_config({**base, "verdict_hysteresis": {"rounds": 2, "margin": 0.3}})
-    assert c.hysteresis == HysteresisSettings(2, 0.3)
+    assert parse_config(base).hysteresis == HysteresisSettings(5, 0.5, 0.02)
+    c = parse_config({**base, "verdict_hysteresis": {"rounds": 2, "margin": 0.3, "band": 0}})
+    assert c.hysteresis == HysteresisSettings(2, 0.3, 0.0)
     with pytest.raises(ConfigError) as info:
-        parse_config({**base, "verdict_hysteresis": {"rounds": 0, "margin": 1.5, "x": 1}})
+        parse_config({**base, "verdict_hysteresis": {"rounds": 0, "margin": 1.5, "x": 1,
+                                                     "band": 0.6}})
     text = str(info.value)
     assert "verdict_hysteresis: key 'rounds': must be in 1..1000, was 0" in text
     assert "verdict_hysteresis: key 'margin': must be <= 1, was 1.5" in text
+    assert "verdict_hysteresis: key 'band': must be <= 0.5, was 0.6" in text
     assert "verdict_hysteresis: unknown key 'x'" in text
 
 

@@ -71,3 +71,43 @@ def test_promtool_finds_nothing() -> None:
     r = run([promtool, "check", "metrics"], input=collector.page(registry, encoder,
                                                                    False).decode())
     assert (r.returncode, r.stdout + r.stderr) == (0, "")
+
+
+@pytest.fixture
+def east_of_utc(monkeypatch: pytest.MonkeyPatch) -> object:
+    """Local time an hour ahead of UTC, where year 1's midnight is before year 1 in UTC."""
+    import time  # noqa: PLC0415
+
+    monkeypatch.setenv("TZ", "Europe/Berlin")
+    time.tzset()
+    yield
+    monkeypatch.undo()
+    time.tzset()
+
+
+@pytest.mark.parametrize("cell", ["0001-01-01", "01.01.0001", "1969-12-31"])
+def test_a_no_date_row_is_refused_and_never_fails_a_scrape(east_of_utc: object, tmp_path: object,
+                                                           cell: str) -> None:
+    """Issue 38 item 1: one row dated 0001-01-01 (a maintenance system's "no date") failed
+    every /metrics scrape (500, "year 0 is out of range"). The file refuses the row; a view
+    holding such a date anyway renders without its timestamp."""
+    from pathlib import Path  # noqa: PLC0415
+
+    from gateway.config.findings import read_findings  # noqa: PLC0415
+
+    p = Path(str(tmp_path)) / "findings.csv"
+    p.write_text(f"loop,date,finding\nFIC101,{cell},stiction\nTIC301,2024-03-05,ok\n")
+    got = read_findings(p, ["FIC101", "TIC301"], today=DAY, shown_as="f.csv")
+    assert [f.loop for f in got.findings] == ["TIC301"]
+    assert got.problems == (f"f.csv: line 2: loop FIC101: column 'date': {cell!r} is before "
+                            "1970 (the 'no date' of a maintenance system's export?): write "
+                            "the day the crew found it",)
+    registry, collector = _registry()
+    assert collector.findings is not None
+    collector.findings.apply(FindingsFile("f.csv", (Finding("FIC101", dt.date(1, 1, 1),
+                                                            "stiction", line=2),)))
+    encoder, _ = choose_encoder("text/plain")
+    page = collector.page(registry, encoder, False)
+    assert page == encoder(registry)
+    assert b'stiction_loop_finding{finding="stiction",loop="FIC101"} 1.0' in page
+    assert b"stiction_loop_finding_timestamp_seconds{" not in page

@@ -83,7 +83,8 @@ def test_a_written_state_reads_back(tmp_path: Path) -> None:
     path = tmp_path / "state" / "gw.state"
     _good_state(path)
     header, arrays = read_state(path)
-    assert header["format"] == "stiction-gateway-state" and header["version"] == 2
+    # version 1: no position in it, so the release before version 2 reads it (issue 35 item 7)
+    assert header["format"] == "stiction-gateway-state" and header["version"] == 1
     assert [e["name"] for e in header["banks"][0]["loops"]] == ["A"]
     assert arrays["b0_t"].tolist() == [float(k) for k in range(30)]
     assert (arrays["b0_op"] == 1.0).all() and arrays["b0_op"].shape == (30, 1)

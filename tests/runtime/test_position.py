@@ -16,7 +16,7 @@ from gateway.config import parse_config
 from gateway.core.points import Quality
 from gateway.wire.results import VERDICT_CODES, decode_block
 from stiction import Verdict
-from stiction.diagnosis.travel import BY_OP_PV, BY_TRAVEL, MEASURED
+from stiction.diagnosis.travel import BY_OP_PV, BY_TRAVEL, MEASURED, NOT_USED
 from stiction.models.valves import KanoValve
 
 N = 1500
@@ -67,7 +67,9 @@ def test_position_and_its_quality_are_exported(harness: Harness) -> None:
 def test_a_bad_position_keeps_the_op_pv_diagnosis(harness: Harness) -> None:
     b, c = _assessment(harness, "B"), _assessment(harness, "C")
     assert c.verdict == b.verdict != Verdict.BAD_DATA
-    assert c.reason == b.reason
+    assert c.reason.startswith(b.reason)  # and says the position was not used, and why
+    assert f"{NOT_USED}: position unusable" in c.reason.removeprefix(b.reason)
+    assert c.position_use == "could_not_tell" and b.position_use is None
     assert next(e.note for e in c.evidence if e.test == "travel").startswith(BY_OP_PV)
     assert all(e.test != "travel" for e in b.evidence)
 

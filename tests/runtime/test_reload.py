@@ -42,14 +42,15 @@ PERIOD = 0.1
 
 
 def _configs() -> tuple[dict[str, Any], dict[str, Any]]:
-    """First: A, B, C on plc, E on plc2. Second: B removed, C's window longer, D added;
-    plc2 and E unchanged."""
+    """First: A, B, C on plc, E on plc2. Second: B removed, C's PV scaled (its window
+    holds other values), D added; plc2 and E unchanged."""
     devs = [memory_device("plc", wiggle(400, 8), poll_interval_s=PERIOD, repeat=True),
             memory_device("plc2", wiggle(400, 2), poll_interval_s=PERIOD, repeat=True)]
     a, b, c = mloop("A", "plc", 0, 0), mloop("B", "plc", 2, 20), mloop("C", "plc", 4, 40)
     e = mloop("E", "plc2", 0, 80)
     first = mconfig(devs, [a, b, c, e], analysis_interval_s=0.5)
-    second = mconfig(devs, [a, {**c, "window_s": 20.0}, mloop("D", "plc", 6, 60), e],
+    second = mconfig(devs, [a, {**c, "pv": {**c["pv"], "scale": 2.0}}, mloop("D", "plc", 6, 60),
+                            e],
                      analysis_interval_s=0.5)
     return first, second
 
@@ -74,7 +75,7 @@ def test_build_runtime_carries_windows_results_and_connections_over() -> None:
         np.testing.assert_array_equal(x, y)
     assert h2.store.results[h2.store.index["A"]].seq == 2  # and its result
     assert h2.store.results[h2.store.index["E"]].seq == 2
-    assert len(h2.window("C")[0]) == 0  # C: window changed: fresh
+    assert (h2.window("C")[3] == Quality.MISSING).all()  # C: window changed: fresh
     assert (h2.window("D")[3] == Quality.MISSING).all()  # D: new, in A's bank
     assert h2.store.results[h2.store.index["C"]] is None
     assert h2.store.results[h2.store.index["D"]] is None

@@ -21,7 +21,7 @@ from ...config.model import Config, LoopConfig, ResultServerSettings
 from ...core.store import ResultStore
 from ...wire.listener import ListenerStats
 from ...wire.registers import RegisterServer
-from ...wire.results import RESULT_BLOCK_SIZE, result_block, unit_images, verdict_code
+from ...wire.results import NO_SOURCE_ADDRESS, result_block, unit_images, verdict_code
 from ..base import Binding, Swap
 
 __all__ = ["ResultServer", "create_sink"]
@@ -80,12 +80,16 @@ class ResultServer:
         removed loops vanish (reads there get exception 2 or zeros) and unit ids no longer
         used get exception 0x0A."""
         self.store = store
+        self.size = self.settings.block_registers
         self.addresses = np.array([lp.result_address for lp in loops], dtype=np.intp)
         units = [self.unit_of(lp) for lp in loops]
+        # each loop's block, by name: the extended block names a group's source by it
+        self._block_of = {lp.name: (u, int(lp.result_address))
+                          for lp, u in zip(loops, units, strict=True)}
         used: dict[int, list[int]] = {u: [] for u in self.unit_ids_of(loops)}
         for u, a in zip(units, self.addresses.tolist(), strict=True):
             used[u].append(a)
-        self.images = unit_images(used)
+        self.images = unit_images(used, self.size)
         self._image_of = [self.images[u] for u in units]  # per loop, for refresh
         for i in range(len(loops)):
             self.refresh(i)
@@ -102,9 +106,11 @@ class ResultServer:
         a = int(self.addresses[i])
         st = self.store
         code = verdict_code(st.results[i], bool(st.stale[i]), bool(st.down[i]))
-        self._image_of[i][a:a + RESULT_BLOCK_SIZE] = result_block(
+        source = st.plant.of(st.loops[i])[2]
+        self._image_of[i][a:a + self.size] = result_block(
             st.results[i], code=code, word_order=self.settings.word_order,
-            plant=st.plant_registers(i))
+            plant=st.plant_registers(i), size=self.size,
+            source=self._block_of.get(source or "", (0, NO_SOURCE_ADDRESS)))
 
     async def prepare(self, config: Config) -> Swap | None:
         """Bind the new ``listen`` address, if it moved, before a reload swaps (OSError if

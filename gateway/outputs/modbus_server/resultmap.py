@@ -18,7 +18,7 @@ import io
 from collections.abc import Iterator
 
 from ...config.model import Config
-from ...wire.results import LAYOUT, RESULT_BLOCK_SIZE
+from ...wire.results import EXTENDED_BLOCK_SIZE, EXTENSION, LAYOUT, RESULT_BLOCK_SIZE, layout
 
 __all__ = ["COLUMNS", "READ_WITH", "MapRow", "layout_markdown", "map_csv", "map_rows",
            "map_table"]
@@ -69,7 +69,7 @@ def map_rows(config: Config, loops: list[str] | None = None) -> Iterator[MapRow]
         if wanted is not None and lp.name not in wanted:
             continue
         unit = server.unit_id if lp.result_unit_id is None else lp.result_unit_id
-        for f in LAYOUT:
+        for f in layout(server.block_registers):
             yield MapRow(lp.name, unit, lp.result_address + f.offset, f.offset, f.name,
                          f.type_name, server.word_order if f.width > 1 else "-", f.scale,
                          f.unit, f.meaning)
@@ -93,14 +93,16 @@ def map_table(rows: Iterator[MapRow]) -> str:
     return "\n".join([READ_WITH, *lines]) + "\n"
 
 
-def layout_markdown() -> str:
-    """The table of one block (docs/modbus-map.md, "One block of 20 registers per loop")."""
+def layout_markdown(extension: bool = False) -> str:
+    """The table of one block (docs/modbus-map.md, "One block of 20 registers per loop"), or
+    of the extended block's registers after those 20 (``extension``)."""
+    fields, size = (EXTENSION, EXTENDED_BLOCK_SIZE) if extension else (LAYOUT,
+                                                                      RESULT_BLOCK_SIZE)
     lines = ["| offset | registers | type | unit | content |", "|---|---|---|---|---|"]
-    for f in LAYOUT:
+    for f in fields:
         regs = f"{f.width}" if f.type != "uint8" else f"{f.byte} byte"
         lines.append(f"| +{f.offset} | {regs} | {f.type} | {f.unit} | {f.meaning} |")
-    end = max(f.offset + f.width for f in LAYOUT)
-    if end < RESULT_BLOCK_SIZE:
-        lines.append(f"| +{end}..+{RESULT_BLOCK_SIZE - 1} | {RESULT_BLOCK_SIZE - end} | - | "
-                     f"- | reserved, 0 |")
+    end = max(f.offset + f.width for f in fields)
+    if end < size:
+        lines.append(f"| +{end}..+{size - 1} | {size - end} | - | - | reserved, 0 |")
     return "\n".join(lines) + "\n"

@@ -64,6 +64,12 @@ _FAMILIES = (  # name, help; in the order they are yielded
      "position), percent of valve span."),
     ("position_quality", "Quality of the latest valve position sample (loops with a "
      "position): 0 good, 1 uncertain, 2 bad (implausible), 3 no communication, 4 missing."),
+    ("judged_timestamp_seconds", "Unix time of the analysis round that judged the verdict "
+     "shown: the latest assessment's unless the verdict is held (then older; its age is "
+     "time() - this)."),
+    ("verdict_hold", "0: the verdict shown was judged by the latest round; 1: held back "
+     "while a new one waits for its rounds (hysteresis); 2: held through warming up (at most "
+     "the loop's window after it was judged)."),
 )
 # the label names of each family, in the order the client library writes them (sorted);
 # its rows hold the values in this order
@@ -125,7 +131,7 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
     families only with ``findings`` (every loop: its latest finding, or ``none``)."""
     out: list[Rows] = [[] for _ in _FAMILIES]
     (si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role, found, when,
-     band, pos, pos_q) = out
+     band, pos, pos_q, judged, hold) = out
     roles = st.plant.roles
     latest = findings.latest if findings is not None else None
     for i, name in enumerate(st.loops):
@@ -133,7 +139,7 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
             f = latest.get(name)
             found.append((("none" if f is None else f.finding, name), 1.0))
             if f is not None:
-                when.append(((name,), day_start(f.date)))
+                _add(when, name, day_start(f.date))
         current = st.verdict_name(i)
         verdict.extend(((name, v), 1.0 if v == current else 0.0) for v in VERDICTS)
         number, its_role = roles.get(name, (0, ""))
@@ -150,7 +156,8 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
             continue
         a = res.assessment
         for rows, value in ((si, a.stiction_index), (period, a.period_s), (ts, res.t),
-                            (fill, res.window_fill), (conf, a.confidence)):
+                            (fill, res.window_fill), (conf, a.confidence),
+                            (judged, res.judged_at), (hold, res.hold)):
             _add(rows, name, value)
         size = a.sizes()
         if size is not None and size.of_span:  # % of span -> the base unit, 0-1

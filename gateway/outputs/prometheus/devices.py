@@ -25,8 +25,9 @@ __all__ = ["RELOAD_STAGES", "STATE_SET_ASIDE", "GatewayMetrics", "ServerCollecto
 RELOAD_STAGES = ("read", "validate", "listen", "build")
 """Where a refused reload failed: reading/decoding the file, validating it, binding a new
 listener, building the runtime."""
-STATE_SET_ASIDE = ("corrupt", "foreign")
-"""Why a state file was set aside at start: unreadable or a field out of bounds, not ours."""
+STATE_SET_ASIDE = ("corrupt", "foreign", "unreadable")
+"""Why a state file was not restored at start: a field out of bounds (set aside), not ours
+(set aside), not a regular file or no answer in time (``unreadable``: left in place)."""
 LATENESS_BUCKETS = (0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0)
 
 
@@ -89,8 +90,8 @@ class GatewayMetrics:
             f"{PREFIX}_state_last_write_timestamp_seconds", "Unix time of the last "
             "state-file write that succeeded.", registry=registry)
         self.state_set_aside = Counter(
-            f"{PREFIX}_state_file_set_aside", "State files set aside at start (the gateway "
-            "started empty), by reason.", ["reason"], registry=registry)
+            f"{PREFIX}_state_file_set_aside", "State files set aside, or left unread, at start "
+            "(the gateway started empty), by reason.", ["reason"], registry=registry)
         for reason in STATE_SET_ASIDE:
             self.state_set_aside.labels(reason=reason)
         self.state_clock_back = Gauge(

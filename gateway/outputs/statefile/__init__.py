@@ -6,7 +6,9 @@ The sink restores the file when it starts (before any poll), writes it every
 again: a full disk must not stop the gateway) and once more when it stops. With the
 gateway's metrics it counts failed writes (``stiction_state_write_failures_total``), keeps
 the time of the last good one (``stiction_state_last_write_timestamp_seconds``), counts
-a file set aside at start (``stiction_state_file_set_aside_total{reason}``) and says how far
+a file set aside at start (``stiction_state_file_set_aside_total{reason}``; ``unreadable``:
+not restored, not set aside: not a regular file, or no answer from the file system within
+``gateway.config.reading.STATE_READ_TIMEOUT_S``; it is read off the event loop) and says how far
 the wall clock was behind the file's last write at start
 (``stiction_state_clock_back_seconds``: it stepped back across the restart).
 """
@@ -21,7 +23,7 @@ from typing import Any
 
 from ..base import Binding, PeriodicWrites, in_thread
 from .format import read_state, snapshot, write_state
-from .restore import RestoreReport, restore_state
+from .restore import RestoreReport, apply_state, read_for_restore, restore_state
 
 __all__ = ["RestoreReport", "StateFile", "create_sink", "read_state", "restore_state"]
 
@@ -44,7 +46,9 @@ class StateFile:
         self.saves = 0
         self.last_save_s = 0.0  # wall time the last write took
         self.report: RestoreReport | None = None
-        self._lock = asyncio.Lock()
+        # held by a write (its snapshot is a copy of the windows) and by a reload, which
+        # makes new windows beside the old: never both copies at once (config/checks.py)
+        self.exclusive = asyncio.Lock()
         self.writes = PeriodicWrites(
             "state file", lambda: self.path, self.save,
             lambda: self.binding.config.gateway.persist_interval_s, log=log,
@@ -62,8 +66,9 @@ class StateFile:
 
     async def start(self) -> None:
         b = self.binding
-        self.report = restore_state(self.path, b.config, b.groups, b.store, wall=self.wall(),
-                                    time_scale=b.clock.time_scale)
+        read = await asyncio.to_thread(read_for_restore, self.path, b.groups)  # bounded
+        self.report = apply_state(read, self.path, b.config, b.groups, b.store,
+                                  wall=self.wall(), time_scale=b.clock.time_scale)
         if self.metrics is not None:
             if self.report.kind is not None:
                 self.metrics.state_set_aside.labels(reason=self.report.kind).inc()
@@ -73,7 +78,7 @@ class StateFile:
     async def save(self, *, final: bool = False) -> int:
         """Write the state file now (atomically); returns its size in bytes. ``final``: the
         last write before a normal exit (no assessment follows)."""
-        async with self._lock:
+        async with self.exclusive:
             b = self.binding
             wall = self.wall()
             header, arrays = snapshot(b.config, b.groups, b.store, wall=wall,

@@ -1,7 +1,8 @@
 """Restoring the state file into fresh windows and a fresh store, loop by loop.
 
 A loop's window comes back when its *window signature* (device connection and sample time,
-window length, OP/PV point definitions) is unchanged, and its latest assessment when the
+OP/PV point definitions; its length aside: the newest samples the window holds now) is
+unchanged, and its latest assessment when the
 whole loop config is also unchanged; other loops start fresh. The time the gateway was down
 becomes a gap (quality MISSING) in the restored windows. A file that cannot be read or is not
 ours is set aside with a warning; the gateway starts fresh and never crashes on it.
@@ -30,14 +31,18 @@ from numpy.typing import NDArray
 
 from stiction import Assessment
 
+from ...config import reading
 from ...config.model import Config
+from ...config.reading import bounded
 from ...core.points import MAX_MAGNITUDE, Quality
 from ...core.store import LoopResult, ResultStore
 from ...core.ticks import STALE_POLLS
 from ...core.windows import LoopGroup, load_columns, loop_signature, result_signature
+from ...wire.results import moved_indices, moved_line
 from .format import StateError, read_state, set_aside, state_bounds
 
-__all__ = ["UNKNOWN_DOWNTIME_ROWS", "RestoreReport", "restore_state", "seq_bump"]
+__all__ = ["UNKNOWN_DOWNTIME_ROWS", "Read", "RestoreReport", "apply_state",
+           "read_for_restore", "restore_state", "seq_bump"]
 
 log = logging.getLogger("gateway.state")
 
@@ -55,25 +60,69 @@ class RestoreReport:
     gap_rows: int = 0
     set_aside: Path | None = None
     problem: str | None = None
-    kind: str | None = None  # why it was set aside: corrupt, foreign
+    kind: str | None = None  # why it was not restored: corrupt, foreign (set aside),
+    # unreadable (left where it is)
     clock_back_s: float = 0.0  # how far the wall clock was behind the file's last write
 
 
-def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[LoopGroup],
-                  store: ResultStore, *, wall: float, time_scale: float) -> RestoreReport:
-    """Restore what matches ``config`` into fresh ``banks`` and ``store``. Never raises for
-    a bad file: it is set aside (one log line) and the report says why; the gateway starts
-    empty."""
-    report = RestoreReport()
-    p = Path(path)
+Read = tuple[dict[str, Any], dict[str, NDArray[Any]]] | StateError | None
+"""What :func:`read_for_restore` found: the header and arrays, why the file is unusable, or
+None (no file)."""
+
+
+def read_for_restore(path: str | os.PathLike[str], banks: Sequence[LoopGroup],
+                     timeout_s: float | None = None) -> Read:
+    """The state file read and checked for ``banks`` (temporary files of a killed write
+    removed), in a thread of its own bounded by ``timeout_s`` (default
+    :data:`gateway.config.reading.STATE_READ_TIMEOUT_S`)
+    (:func:`gateway.config.reading.bounded`); never raises. Thread-safe: it touches nothing
+    of the running gateway, so the gateway may call it off its event loop."""
+    max_bytes, max_loops = state_bounds(banks)
+    keep = {cfg.name: g.bank.size for g in banks for cfg in g.configs}
+    try:
+        return bounded(_read_file, Path(path), max_bytes, max_loops, keep,
+                       timeout_s=reading.STATE_READ_TIMEOUT_S if timeout_s is None
+                       else timeout_s)
+    except StateError as exc:
+        return exc
+    except OSError as exc:  # the file system did not answer in time
+        return StateError("unreadable", exc.strerror or str(exc))
+    except Exception as exc:  # untrusted bytes: whatever the checks let through
+        return StateError("corrupt", f"cannot be read: {type(exc).__name__}: {exc}")
+
+
+def _read_file(p: Path, max_bytes: int, max_loops: int, keep: dict[str, int]) -> Read:
     for tmp in p.parent.glob(f".{p.name}.tmp-*"):  # left by a kill in the middle of a write
         with contextlib.suppress(OSError):
             tmp.unlink()
     if not p.exists():
+        return None
+    return read_state(p, max_bytes=max_bytes, max_loops=max_loops, keep=keep)
+
+
+def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[LoopGroup],
+                  store: ResultStore, *, wall: float, time_scale: float) -> RestoreReport:
+    """Read the state file (:func:`read_for_restore`) and restore what matches ``config``
+    into fresh ``banks`` and ``store`` (:func:`apply_state`)."""
+    return apply_state(read_for_restore(path, banks), path, config, banks, store, wall=wall,
+                       time_scale=time_scale)
+
+
+def apply_state(got: Read, path: str | os.PathLike[str], config: Config,
+                banks: Sequence[LoopGroup], store: ResultStore, *, wall: float,
+                time_scale: float) -> RestoreReport:
+    """Restore what :func:`read_for_restore` read and matches ``config`` into fresh
+    ``banks`` and ``store`` (on the event loop: the store's subscribers hear of it). Never
+    raises for a bad file: it is set aside (one log line) and the report says why; the
+    gateway starts empty."""
+    report = RestoreReport()
+    p = Path(path)
+    if got is None:
         return report
-    max_bytes, max_loops = state_bounds(banks)
     try:
-        header, arrays = read_state(p, max_bytes=max_bytes, max_loops=max_loops)
+        if isinstance(got, StateError):
+            raise got
+        header, arrays = got
         _apply(report, p, header, arrays, config=config, banks=banks, store=store,
                wall=wall, time_scale=time_scale)
     except StateError as exc:
@@ -89,6 +138,9 @@ def restore_state(path: str | os.PathLike[str], config: Config, banks: Sequence[
 
 def _refuse(report: RestoreReport, p: Path, exc: StateError) -> None:
     report.problem, report.kind = str(exc), exc.kind
+    if exc.kind == "unreadable":  # a FIFO, a hung mount: nothing to move, or no answer
+        log.error("state file %s: %s; starting fresh (the next write replaces it)", p, exc)
+        return
     try:
         report.set_aside = set_aside(p, exc.kind)
     except OSError as err:
@@ -118,9 +170,10 @@ def _position(arrays: dict[str, NDArray[Any]], k: int, c: int) -> NDArray[Any] |
     pos = arrays.get(f"b{k}_pos")
     if pos is None:
         return None
-    col = pos[:, c]
+    col = pos[:, c]  # a view: the array read is the restore's own (no copy per column)
     with np.errstate(invalid="ignore"):
-        return np.where(np.abs(col) <= MAX_MAGNITUDE, col, np.float32(np.nan))
+        col[~(np.abs(col) <= MAX_MAGNITUDE)] = np.nan
+    return col
 
 
 def _plausible(op: NDArray[Any], pv: NDArray[Any], q: NDArray[Any]
@@ -161,8 +214,10 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
         last_t = None
         for col, cfg in enumerate(ref.configs):
             hit = saved.get(cfg.name)
-            if hit is None or hit[2].get("signature") != loop_signature(config, cfg):
-                report.fresh.append(cfg.name)
+            saved_size = header["banks"][hit[0]]["size"] if hit is not None else None
+            if hit is None or hit[2].get("signature") != loop_signature(config, cfg,
+                                                                        samples=saved_size):
+                report.fresh.append(cfg.name)  # (a window of another length: its newest)
                 continue
             k, c, entry = hit
             t = arrays[f"b{k}_t"]
@@ -177,10 +232,13 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
             if res is not None and entry.get("result_signature") == result_signature(config,
                                                                                        cfg):
                 try:
+                    judged = float(res.get("judged", res["t"]))  # a held verdict's age
                     lr = LoopResult(Assessment.from_dict(res["assessment"]),
                                     int(res["seq"]) + bump,
                                     float(res["t"]), float(res["window_fill"]),
-                                    int(res["samples"]))
+                                    int(res["samples"]),
+                                    None if judged == float(res["t"]) else judged,
+                                    int(res.get("hold", 0)))
                 except (KeyError, TypeError, ValueError) as exc:
                     log.warning("state file %s: loop %s: result unreadable (%s)", p,
                                 cfg.name, exc)
@@ -209,6 +267,9 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
                     "hand?); the downtime is unknown: a gap of at least %d samples in every "
                     "window%s", p, report.clock_back_s, UNKNOWN_DOWNTIME_ROWS,
                     "" if not bump else f", sequence numbers moved on by {bump}")
+    moved = moved_indices(header.get("order", ()), store.loops)
+    if moved:
+        log.warning("state file %s: %s", p, moved_line(moved))
     log.info("state file %s: restored %d windows and %d assessments; %d loops start fresh; "
              "downtime gap %d samples", p, report.restored_windows, report.restored_results,
              len(report.fresh), report.gap_rows)

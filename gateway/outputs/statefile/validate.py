@@ -136,6 +136,10 @@ def _result(r: Any, where: str) -> None:
     _number(r["t"], f"{where}.t", 0.0, MAX_WALL)
     _number(r["window_fill"], f"{where}.window_fill", 0.0, 1.0)
     _integer(r["samples"], f"{where}.samples", 0, MAX_WINDOW)
+    if "judged" in r:  # since issue 35 item 5 (the release before ignores it)
+        _number(r["judged"], f"{where}.judged", 0.0, MAX_WALL)
+    if "hold" in r:
+        _integer(r["hold"], f"{where}.hold", 0, 2)
 
 
 def _loop(entry: Any, where: str) -> None:
@@ -157,6 +161,9 @@ def check_header(header: Any, max_loops: int) -> None:
         raise ValueError("clean: not true/false")
     if h.get("analysis_interval_wall_s") is not None:
         _number(h["analysis_interval_wall_s"], "analysis_interval_wall_s", 1e-6, 1e12)
+    if "order" in h:  # the loops in config order (read when valid; older files lack it)
+        for k, name in enumerate(_list(h["order"], "order", max_loops)):
+            _text(name, f"order[{k}]", 1000)
     banks = _list(h.get("banks"), "banks", max_loops)
     loops = 0
     for k, bank in enumerate(banks):

@@ -4,7 +4,8 @@ verdicts of their day across restarts and kills (:mod:`.history`, the file;
 :class:`gateway.core.findings.VerdictHistory`, what it holds).
 
 The sink loads the file when it starts (before the state file is restored, so restored
-assessments extend the history), writes it every ``gateway.persist_interval_s`` when it
+assessments extend the history; read off the event loop, bounded in time and size:
+:mod:`gateway.config.reading`), writes it every ``gateway.persist_interval_s`` when it
 changed and once more when it stops; a failing write is logged once, and once when it works
 again. A file that cannot be used is set aside; the history starts afresh.
 """
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ...config.findings import verdicts_path
+from ...config.reading import bounded
 from ...core.findings import FindingsBook
 from ..base import Binding, PeriodicWrites, in_thread
 from .history import HistoryError, read_history, set_aside, write_history
@@ -64,27 +66,36 @@ class VerdictFile:
             self.book.history.dirty = True
 
     async def start(self) -> None:
-        self.load()
+        loaded = await asyncio.to_thread(self.read)  # bounded in time: off the event loop
+        if loaded is not None:
+            self.book.history.load(loaded)
+            self.book.refresh(force=True)
+            log.info("verdict history %s: %d loops", self.path, len(self.book.history.loops))
         self.writes.start()
 
-    def load(self) -> None:
+    def read(self) -> dict[str, Any] | None:
+        """The history file's loops (None: none, or unusable: set aside, or left where it is
+        when it could not be read), temporary files of a killed write removed; touches
+        nothing of the running gateway."""
         p = self.path
-        for tmp in p.parent.glob(f".{p.name}.tmp-*"):  # left by a kill during a write
-            with contextlib.suppress(OSError):
-                tmp.unlink()
-        if not p.exists():
-            return
         max_loops = 2 * len(self.binding.config.loops) + 1000
         try:
-            self.book.history.load(read_history(p, max_loops=max_loops))
+            if not bounded(_clean, p):
+                return None
+            return read_history(p, max_loops=max_loops)
+        except OSError as exc:  # the folder did not answer in time
+            log.error("verdict history %s: %s; the history starts afresh", p,
+                      exc.strerror or exc)
+            return None
         except HistoryError as exc:
+            if exc.kind == "unreadable":
+                log.error("verdict history %s: %s; the history starts afresh", p, exc)
+                return None
             with contextlib.suppress(OSError):
                 self.set_aside = set_aside(p, exc.kind)
             log.warning("verdict history %s: %s; set aside as %s, the history starts afresh",
                         p, exc, self.set_aside)
-            return
-        self.book.refresh(force=True)
-        log.info("verdict history %s: %d loops", p, len(self.book.history.loops))
+            return None
 
     async def save(self) -> int:
         """Write the history now (atomically); returns its size in bytes."""
@@ -102,3 +113,11 @@ class VerdictFile:
 
     async def stop(self) -> None:
         await self.writes.stop()
+
+
+def _clean(p: Path) -> bool:
+    """Remove the temporary files of a write killed half-way; whether ``p`` exists."""
+    for tmp in p.parent.glob(f".{p.name}.tmp-*"):
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+    return p.exists()

@@ -20,6 +20,7 @@ starts its history afresh; it never stops on it.
 from __future__ import annotations
 
 import datetime as dt
+import errno
 import json
 import math
 import os
@@ -30,6 +31,7 @@ from typing import Any, BinaryIO
 
 from stiction import Verdict
 
+from ...config.reading import read_bytes
 from ...core.findings import MAX_ENTRIES, NOT_CALLS
 from ..base import write_atomically
 
@@ -45,7 +47,8 @@ _FIRST, _LAST = dt.date(1970, 1, 1).toordinal(), dt.date(9999, 12, 31).toordinal
 
 
 class HistoryError(Exception):
-    """The file cannot be used; ``kind`` is ``corrupt`` or ``foreign``."""
+    """The file cannot be used; ``kind`` is ``corrupt`` or ``foreign`` (set aside), or
+    ``unreadable`` (not a regular file, no answer in time: left where it is)."""
 
     def __init__(self, kind: str, message: str) -> None:
         super().__init__(message)
@@ -67,18 +70,19 @@ def write_history(path: str | os.PathLike[str], loops: Mapping[str, Any], saved:
 
 def read_history(path: str | os.PathLike[str], *, max_loops: int) -> dict[str, Any]:
     """The ``loops`` of a history file, every field checked; HistoryError if unusable."""
-    p = Path(path)
     max_bytes = 1024 * 1024 + BYTES_PER_LOOP * max_loops
     try:
-        size = p.stat().st_size
-        if size > max_bytes:
-            raise HistoryError("corrupt", f"{size:,} bytes, more than the {max_bytes:,} a "
-                               "history of this config can need")
-        data = json.loads(p.read_bytes().decode("utf-8"))
+        blob = read_bytes(path, max_bytes)  # a regular file, within a time limit
+        if len(blob) > max_bytes:
+            raise HistoryError("corrupt", f"more than the {max_bytes:,} bytes a history of "
+                               "this config can need")
+        data = json.loads(blob.decode("utf-8"))
     except HistoryError:
         raise
-    except OSError as exc:
-        raise HistoryError("corrupt", f"cannot read it: {exc.strerror or exc}") from None
+    except OSError as exc:  # not a regular file, no answer in time: left where it is
+        kind = "unreadable" if exc.errno in (errno.EINVAL, errno.ETIMEDOUT, errno.EBUSY) \
+            else "corrupt"
+        raise HistoryError(kind, f"cannot read it: {exc.strerror or exc}") from None
     except (ValueError, RecursionError) as exc:  # not UTF-8, not JSON, nested too deep
         raise HistoryError("corrupt", f"not readable JSON: {type(exc).__name__}") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:

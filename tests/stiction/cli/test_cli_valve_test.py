@@ -119,3 +119,55 @@ def test_simulate_writes_a_step_test_that_valve_test_reads(
     with pytest.raises(SystemExit):
         main(["simulate", "--scenario", "table4-case1", "--step-test", "3", "-o", str(out)])
     assert "--step-test: 3 s holds fewer than 5 samples" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def flow_test(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """`stiction simulate`'s step test of a valve of fs 3 %, fd 1 % (K = 1) on a flow loop,
+    60-s holds, as a new user writes it."""
+    out = tmp_path_factory.mktemp("flow") / "fv101.csv"
+    assert main(["simulate", "--scenario", "table4-case1", "--fs", "0.03", "--fd", "0.01",
+                 "--k", "1", "--noise", "0.02", "--step-test", "60", "-o", str(out)]) == 0
+    return out
+
+
+def _edited(src: Path, dst: Path, pv: object) -> Path:
+    """``src`` with its PV column replaced by ``pv(row, value)``."""
+    lines = src.read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    dst.write_text("\n".join([lines[0], *(",".join([r[0], r[1], f"{pv(i, float(r[2])):.6f}",
+                                                     r[3]]) for i, r in enumerate(rows))])
+                   + "\n")
+    return dst
+
+
+def test_kp_is_used_and_a_disturbed_hold_is_read_as_one(
+        flow_test: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--kp gives the gain PV is read through; PV pushed by 1.5 while OP held (the hold at
+    9000 s) is named, the steps beside it marked '?', and the figures stay the valve's."""
+    got = _json(capsys, ["valve-test", str(flow_test), "--op-range", "0", "100", "--kp",
+                         "1", "--json"])
+    assert got["gain"] == pytest.approx(1.0)
+    bumped = _edited(flow_test, tmp_path / "bumped.csv",
+                     lambda i, v: v + (1.5 if 9020 <= i < 9045 else 0.0))
+    assert main(["valve-test", str(bumped), "--op-range", "0", "100"]) == 0
+    out = capsys.readouterr().out
+    assert "cannot be read (?)" in out and "a disturbance, not the valve" in out
+    assert "dead band:  4.02 % of span (3.84 .. 4.02)" in out
+    assert any(line.split()[2:3] == ["?"] for line in out.splitlines()
+               if line.strip().startswith("90"))
+    with pytest.raises(SystemExit) as info:
+        main(["valve-test", str(flow_test), "--position", "vp", "--kp", "1"])
+    assert info.value.code == 2 and "--kp is PV's process gain" in capsys.readouterr().err
+
+
+def test_a_frozen_pv_is_refused_not_read(flow_test: Path, tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """A PV that holds one value while OP steps: exit 2, saying so (5c94178: '1 moved the
+    valve', exit 0)."""
+    frozen = _edited(flow_test, tmp_path / "frozen.csv", lambda i, v: 50.0)
+    with pytest.raises(SystemExit) as info:
+        main(["valve-test", str(frozen), "--op-range", "0", "100"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "PV holds one value (50) in all 11880 samples" in err and "frozen" in err

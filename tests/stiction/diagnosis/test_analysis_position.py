@@ -13,7 +13,7 @@ from valve_loops import run_loops
 import stiction
 from stiction import ParameterError, Verdict
 from stiction.diagnosis.analyze import analyze_details
-from stiction.diagnosis.travel import BY_OP_PV, BY_TRAVEL, MEASURED
+from stiction.diagnosis.travel import BY_OP_PV, BY_TRAVEL, MEASURED, NOT_USED
 from stiction.models.valves import HeValve, KanoValve
 
 
@@ -72,11 +72,15 @@ def test_a_good_valve_decides_whatever_pv_does() -> None:
 
 
 def test_a_valve_that_does_not_follow_is_not_responding() -> None:
-    (r,) = run_loops(KanoValve(0.05, 0.01), 1, pv_noise=0.05)
-    held = 37.0 + np.random.default_rng(3).normal(0, 0.05, r.op.size)
-    a = stiction.analyze(r.op, r.pv, ts=1.0, op_range=(0.0, 100.0), position=held)
+    """A valve stuck for good (fs 100 % of span): integral action ramps OP 16 % while the
+    position and PV hold within their noise."""
+    (r,) = run_loops(HeValve(1.0, 0.9, 1.0), 1, pv_noise=0.05, position_noise=0.05,
+                     sp_step=1.0, ti=200.0)
+    assert np.ptp(r.op) > 10.0
+    a = stiction.analyze(r.op, r.pv, ts=1.0, op_range=(0.0, 100.0), position=r.position)
     assert a.verdict == Verdict.VALVE_NOT_RESPONDING
     assert MEASURED in a.reason
+    assert a.position_use == "used"
 
 
 @pytest.mark.parametrize("position", ["nan", "gappy"])
@@ -89,7 +93,11 @@ def test_an_unusable_position_keeps_the_op_pv_diagnosis(position: str) -> None:
     plain = stiction.analyze(r.op, r.pv, **kw)  # type: ignore[arg-type]
     a = stiction.analyze(r.op, r.pv, position=pos, **kw)  # type: ignore[arg-type]
     assert _travel_note(a).startswith(BY_OP_PV)
-    assert dataclasses.replace(a, evidence=a.evidence[:-1]) == plain
+    assert a.position_use == "could_not_tell"
+    assert a.reason.startswith(plain.reason)
+    assert f"{NOT_USED}: " in a.reason.removeprefix(plain.reason)
+    assert dataclasses.replace(a, evidence=a.evidence[:-1], reason=plain.reason,
+                               position_use=None) == plain
 
 
 def test_no_position_is_exactly_the_op_pv_diagnosis() -> None:
