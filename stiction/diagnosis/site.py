@@ -36,7 +36,7 @@ import numpy as np
 
 from .._validate import FloatArray
 
-__all__ = ["PRIOR_WEIGHT", "SiteStats", "coral", "label_shift", "mixture", "platt"]
+__all__ = ["PRIOR_WEIGHT", "SiteStats", "coral", "label_shift", "mixture", "platt", "shifted"]
 
 PRIOR_WEIGHT = 10.0
 """Windows' worth of the simulation's share of sticky windows in a site's EM estimate
@@ -149,6 +149,14 @@ def platt(logit: FloatArray | float, scale: float, offset: float) -> FloatArray:
     return np.asarray(1.0 / (1.0 + np.exp(-np.clip(z, -60.0, 60.0))), dtype=np.float64)
 
 
+def shifted(posteriors: FloatArray | float, source_prior: float, share: float) -> FloatArray:
+    """Posteriors calibrated where the share of sticky windows was ``source_prior``, at a
+    share of ``share`` (Bayes' rule: the odds times the ratio of the two priors' odds)."""
+    p = np.asarray(posteriors, dtype=np.float64)
+    a, b = share / source_prior, (1.0 - share) / (1.0 - source_prior)
+    return np.asarray(a * p / (a * p + b * (1.0 - p)), dtype=np.float64)
+
+
 def label_shift(posteriors: Sequence[float] | FloatArray, source_prior: float, *,
                 prior_weight: float = 0.0, iterations: int = 100, tol: float = 1e-6
                 ) -> tuple[FloatArray, float]:
@@ -163,8 +171,7 @@ def label_shift(posteriors: Sequence[float] | FloatArray, source_prior: float, *
     prior = source_prior
 
     def rescaled(share: float) -> FloatArray:
-        a, b = share / source_prior, (1.0 - share) / (1.0 - source_prior)
-        return np.asarray(a * p / (a * p + b * (1.0 - p)), dtype=np.float64)
+        return shifted(p, source_prior, share)
 
     q = p
     for _ in range(iterations):
