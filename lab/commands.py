@@ -1,7 +1,9 @@
 """The lab's commands (``python -m lab NAME``): ``corpus`` builds the development corpus and
 prints it (``make corpus``), ``train [--write]`` trains and validates the decision
 (``--write`` writes stiction/diagnosis/model.json), ``calibrate [--write]`` fits the
-weighted vote (``--write`` writes stiction/diagnosis/weights.py). The benchmarks' old names
+weighted vote (``--write`` writes stiction/diagnosis/weights.py), ``shape-corpus`` builds
+the shape network's corpus and ``shape [--search | --write]`` trains the network and prints
+its research table (lab/shape/). The benchmarks' old names
 (``python -m bench corpus``, ``python -m bench.train``, ``python -m bench calibrate``) run
 them too (bench/corpus.py, bench/train.py, bench/calibrate.py)."""
 
@@ -11,7 +13,8 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 
-USAGE = "usage: python -m lab {corpus | train [--write] | calibrate [--write]}"
+USAGE = ("usage: python -m lab {corpus | train [--write] | calibrate [--write] | "
+         "shape-corpus [--chunks N] | shape [--search | --write]}")
 
 
 def corpus(argv: Sequence[str] = ()) -> None:
@@ -67,8 +70,24 @@ def calibrate(argv: Sequence[str] = ()) -> None:
         print(f"  wrote {WEIGHTS_FILE}")
 
 
+def shape_corpus(argv: Sequence[str] = ()) -> None:
+    """Build the shape network's corpus (lab/shape/corpus.py), then print what is built."""
+    from .shape import corpus as shape
+
+    shape.main(argv)
+
+
+def shape(argv: Sequence[str] = ()) -> None:
+    """Train the shape network's seeds (or ``--search`` the configurations), print the
+    research table; ``--write`` exports stiction/diagnosis/shape.npz (lab/shape/research.py)."""
+    from .shape import research
+
+    research.main(argv)
+
+
 COMMANDS: dict[str, Callable[[Sequence[str]], None]] = {
-    "corpus": corpus, "train": train, "calibrate": calibrate}
+    "corpus": corpus, "train": train, "calibrate": calibrate, "shape-corpus": shape_corpus,
+    "shape": shape}
 
 
 def main(argv: Sequence[str]) -> int:
