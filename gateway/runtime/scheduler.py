@@ -47,6 +47,7 @@ from ..config.model import Config, HysteresisSettings, PlantSettings
 from ..core.hysteresis import VerdictFilter
 from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolve
 from ..core.plant import PlantTracker, analyze_plant_job, plant_jobs
+from ..core.siteshare import SiteShare
 from ..core.store import LoopResult, ResultStore
 from ..core.windows import LoopGroup
 from .logs import clip, sizes_text
@@ -136,7 +137,8 @@ class AnalysisScheduler:
                  plant: PlantSettings | None = None,
                  hysteresis: HysteresisSettings | None = None,
                  on_verdict: Callable[[str], None] | None = None,
-                 time_scale: float = 1.0, hooks: RoundHooks | None = None) -> None:
+                 time_scale: float = 1.0, hooks: RoundHooks | None = None,
+                 site_adaptation: bool = True) -> None:
         self.store = store
         self.time_scale = time_scale
         self.groups = list(groups)  # (sets the windows' lengths: the longest hold)
@@ -156,6 +158,7 @@ class AnalysisScheduler:
         self._executor = executor
         self._pool: Executor | None = None
         self.hooks = hooks  # the site's calibration and the list worst first (crewlist)
+        self.site = SiteShare(site_adaptation)  # the loops' share of sticky valves
 
     @property
     def groups(self) -> list[LoopGroup]:
@@ -188,6 +191,7 @@ class AnalysisScheduler:
         self.groups = list(groups)
         self.interval_wall_s = g.analysis_interval_s / g.time_scale
         self.plant = config.plant
+        self.site.enabled = config.analysis.site_adaptation
         self.verdicts.settings = config.hysteresis
         # a loop whose result the reload did not carry (its window, or its config, changed)
         # starts fresh, its hold included (issue 35 item 5)
@@ -242,6 +246,7 @@ class AnalysisScheduler:
         sem = asyncio.Semaphore(2 * self.workers)
         done = 0
         held: dict[int, Held] | None = {} if self.plant.enabled else None
+        self.site.estimate(store)  # from the latest results (restored ones after a restart)
 
         async def one(batch: list[LoopJob]) -> None:
             nonlocal done
@@ -254,7 +259,9 @@ class AnalysisScheduler:
             t = now()
             for index, raw, fill, samples, dur, swing in results:
                 shown, name = store.results[index], store.loops[index]
-                analysed = raw if self.hooks is None else self.hooks.calibrate(name, raw, t)
+                at_site = self.site.apply(raw)
+                analysed = at_site if self.hooks is None else \
+                    self.hooks.calibrate(name, at_site, t)
                 assessment = self.verdicts.publish(
                     name, analysed, t, shown=None if shown is None else shown.assessment,
                     shown_at=None if shown is None else shown.judged_at,
