@@ -11,16 +11,22 @@ plant's share, and the round's assessments are called again at it
 findings and the verdict hysteresis. After a restart the share comes from the state file's
 restored results, before the first round. Fewer than :data:`MIN_WINDOWS` windows read, or
 ``analysis.site_adaptation: false``: each loop is scored alone, and its reason says so.
+
+:mod:`stiction.diagnosis.adapt` (with the network and SciPy's signal package under it) is
+imported at the first round, not at start: ``check-config`` and the start stay as fast.
 """
 
 from __future__ import annotations
 
 import logging
+from typing import TYPE_CHECKING
 
 from stiction import Assessment
-from stiction.diagnosis.adapt import Site, adapt, site_of
 
 from .store import ResultStore
+
+if TYPE_CHECKING:
+    from stiction.diagnosis.adapt import Site
 
 __all__ = ["MIN_WINDOWS", "SiteShare"]
 
@@ -43,6 +49,8 @@ class SiteShare:
         if not self.enabled:
             self.site = None
             return None
+        from stiction.diagnosis.adapt import site_of  # noqa: PLC0415 (module doc)
+
         found = site_of([r.assessment for r in store.results if r is not None])
         self.site = found if found.windows >= MIN_WINDOWS else None
         if self.site is not None and (before is None or abs(before.share - self.site.share)
@@ -54,4 +62,8 @@ class SiteShare:
 
     def apply(self, a: Assessment) -> Assessment:
         """One loop's assessment at the site's share (as it is without one)."""
-        return a if self.site is None else adapt([a], self.site)[0]
+        if self.site is None:
+            return a
+        from stiction.diagnosis.adapt import adapt  # noqa: PLC0415 (module doc)
+
+        return adapt([a], self.site)[0]

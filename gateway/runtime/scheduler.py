@@ -123,6 +123,13 @@ class RoundHooks(Protocol):
     def after_round(self, store: ResultStore) -> None: ...
 
 
+JOINED = ("after ``shutdown(wait=False)`` the pool's manager thread may close its wake-up "
+          "pipe while CPython 3.11's exit hook writes to it, printing 'OSError: [Errno 9] Bad "
+          "file descriptor' at exit (CPython gh-125451; the demo showed it in 2 of 5 runs); a "
+          "running batch is at most one per worker, well under a second at the default size")
+"""Why :meth:`AnalysisScheduler.stop` joins the pool."""
+
+
 class AnalysisScheduler:
     """Runs analysis rounds over ``groups`` and writes the results into ``store``.
 
@@ -152,9 +159,7 @@ class AnalysisScheduler:
         self.plant = plant if plant is not None else PlantSettings()
         # each loop's verdict passes it before it is published (core/hysteresis.py)
         self.verdicts = VerdictFilter(hysteresis, on_count=on_verdict)
-        self.rounds = 0
-        self.last_round_s = 0.0
-        self.last_plant_s = 0.0
+        self.rounds, self.last_round_s, self.last_plant_s = 0, 0.0, 0.0
         self._executor = executor
         self._pool: Executor | None = None
         self.hooks = hooks  # the site's calibration and the list worst first (crewlist)
@@ -217,11 +222,8 @@ class AnalysisScheduler:
                                for _ in range(self.workers)))
 
     async def stop(self) -> None:
-        """Cancel queued batches, let running ones finish (at most one batch per worker, well
-        under a second at the default batch size) and join the pool, off the event loop.
-        Joining matters: after ``shutdown(wait=False)`` the pool's manager thread may close
-        its wake-up pipe while CPython 3.11's exit hook writes to it, printing "OSError: [Errno
-        9] Bad file descriptor" at exit (CPython gh-125451; the demo showed it in 2 of 5 runs)."""
+        """Cancel queued batches, let running ones finish and join the pool, off the event
+        loop (why joining matters: :data:`JOINED`)."""
         pool, self._pool = self._pool, None
         if pool is not None:
             await asyncio.to_thread(pool.shutdown, wait=True, cancel_futures=True)
