@@ -89,7 +89,21 @@ def report(rs: Sequence[Row], s: Scored) -> None:
             for label, p in FAMILIES)
         print(f"  {name:<22} all {right:>4}; found {found}")
         print(f"  {'':<22} {', '.join(precs)}")
+    _folds(s, cands["shipped"][0], cands["today"][0])
     _reliability(s, cands["shipped"][1], cands["shipped, site"][1])
+
+
+def _folds(s: Scored, called: np.ndarray, before: np.ndarray) -> None:
+    """Per fold, the shipped call: sticky found, precision, others called; today's in
+    brackets."""
+    print("== held out per fold, the shipped call (today's decision in brackets) ==")
+    print(f"  {'source':<12} {'sticky found':>16} {'precision':>10}  others called")
+    for src in sorted(set(s.src.tolist())):
+        f, n, fp, m = _fold(s, called, src)
+        bf, _, bfp, _ = _fold(s, before, src)
+        prec = f"{f / (f + fp):.0%}" if f + fp else "-"
+        print(f"  {src:<12} {f'{f}/{n} [{bf}]' if n else '-':>16} {prec:>10}  "
+              f"{fp}/{m} [{bfp}]")
 
 
 def _reliability(s: Scored, conf: np.ndarray, site: np.ndarray) -> None:

@@ -12,7 +12,7 @@ import pytest
 
 from lab.sources import records
 from stiction import Verdict, analyze
-from stiction.diagnosis import network, shape
+from stiction.diagnosis import adapt, network, shape
 from stiction.diagnosis.analyze import analyze_details
 from stiction.scenarios.named import scenario, simulate
 
@@ -63,3 +63,27 @@ def test_a_plant_record_only_the_network_backs_is_called() -> None:
     assert a.verdict == Verdict.STICTION and a.confidence is not None
     assert [t for t, v in votes.items() if v > 0] == ["shape_net"]
     assert "Tests: stiction: shape_net;" in a.reason
+
+
+def test_analyze_at_a_sites_share_calls_what_adapt_calls() -> None:
+    """A sticky valve of Table 6 exported every 10 s reads 0.63 alone (in the abstention
+    band: undetermined); at a site where 60 % of the windows are sticky the same reading is
+    0.92: stiction, by analyze with the site and by adapt from the assessment alike."""
+    res = simulate(scenario("table6", tau=240.0), noise=0.02, seed=36, duration=3600.0)
+    op, pv = res.op[::10], res.pv[::10]
+    alone = analyze(op, pv, ts=10.0)
+    net = next(e.value for e in alone.evidence if e.test == "shape_net")
+    band_low, threshold = network.thresholds()
+    assert net is not None and band_low + 0.2 < net < threshold - 0.04
+    assert alone.verdict == Verdict.UNDETERMINED and alone.site == adapt.NONE
+    site = adapt.Site(0.6, 40, adapt.estimate([]).source)
+    there = analyze(op, pv, ts=10.0, site=site)
+    assert there.verdict == Verdict.STICTION and there.confidence is not None
+    assert there.confidence == pytest.approx(adapt.at_site(net, site)) and \
+        there.confidence > threshold + 0.15
+    assert (there.site, there.site_share) == (adapt.ADAPTED, 0.6)
+    assert there.to_dict()["site"] == "adapted"
+    e = next(e for e in there.evidence if e.test == "shape_net")
+    assert e.value == net and e.vote == 1  # its own reading; the vote at the site
+    (again,) = adapt.adapt([alone], site)
+    assert again.verdict == there.verdict and again.confidence == pytest.approx(there.confidence)
