@@ -43,6 +43,7 @@ from typing import TextIO
 from gateway.config import parse_config
 from gateway.runtime.gateway import Gateway
 from gateway.runtime.service import install_stop_signals
+from stiction import Verdict
 from stiction.scenarios.plants import NAMED_PLANTS
 
 from .config import parse_sim_config
@@ -81,25 +82,14 @@ DEMO_PLANT: dict[str, str | float] = {"plant": "sticky-feeds-two", "prefix": "U2
 
 ADVICE_DOC = "docs/modbus-map.md#verdict-codes"
 VERDICT_ADVICE: dict[str, str] = {
-    "stiction": "the valve sticks: confirm with small OP steps in manual; plan its "
-                "maintenance, the largest fd first",
-    "propagated": "its cycle comes from the group's source loop: fix that one first, "
-                  "not this valve",
-    "undetermined": "it cycles, the evidence is unclear: do not act on it alone; watch the "
-                    "next rounds, test the valve when you can",
-    "no_stiction": "it cycles like a sine: look at the tuning or a disturbance, not the valve",
-    "not_oscillating": "it does not cycle: nothing to do",
-    "valve_not_responding": "OP moves, PV does not: check the valve, its positioner and air "
-                            "now",
-    "bad_data": "the window cannot be analysed: the reason says why (gaps, frozen, "
-                "saturated)",
-    "warming_up": "the loop's window is still filling: wait (fill says how far)",
+    **{str(v): v.advice for v in Verdict},  # the analysis' verdicts: one text everywhere
     "none": "no analysis yet: the first comes within one analysis interval",
     "stale": "no fresh samples while the device answers: check the loop's points",
     "device_down": "its device does not answer: the journal says why",
 }
 """What each verdict the table can show asks of the engineer (the demo prints those on
-screen; docs/modbus-map.md says the same at length)."""
+screen; docs/modbus-map.md says the same at length): the analysis' verdicts their
+:attr:`stiction.Verdict.advice`, the gateway's own codes here."""
 LEGEND = ("SI: stiction index 0-1 (>= 0.6 stiction-like, <= 0.4 not); fd, fs: dynamic and "
           "static friction, % of valve span; period: of the cycle, process s; fill: share of "
           "the loop's window holding samples (1.00 full); #: analyses so far; plant: the "

@@ -11,7 +11,7 @@ import dataclasses
 import enum
 from typing import Any
 
-__all__ = ["DEFAULT_K", "POSITION_USES", "Assessment", "Evidence", "Sizes", "Verdict"]
+__all__ = ["ADVICE", "DEFAULT_K", "POSITION_USES", "Assessment", "Evidence", "Sizes", "Verdict"]
 
 DEFAULT_K = 1.99
 """He's overshoot factor K that :func:`stiction.analyze` assumes unless told (Table 1 valve)."""
@@ -36,6 +36,39 @@ class Verdict(enum.StrEnum):
     VALVE_NOT_RESPONDING = "valve_not_responding"
     WARMING_UP = "warming_up"
     PROPAGATED = "propagated"
+
+    @property
+    def advice(self) -> str:
+        """What the verdict means and asks of the engineer, in one sentence: the one text
+        every output prints (``stiction analyze``, the demo's table) and
+        docs/modbus-map.md#verdict-codes says at length. It holds to what the analysis was
+        measured to be worth (docs/accuracy.md): ``stiction`` is usually right, and no other
+        verdict clears the valve (most sticky valves on real plants were not called)."""
+        return ADVICE[self]
+
+
+ADVICE: dict[Verdict, str] = {
+    Verdict.STICTION: "the valve sticks: confirm with small OP steps in manual; plan its "
+                      "maintenance, the largest fd first",
+    Verdict.NO_STICTION: "no test found stiction in this window; this does not clear the "
+                         "valve (most sticky valves on real plants are not called): look at "
+                         "the tuning and at loops cycling at the same period, and test the "
+                         "valve when the process allows",
+    Verdict.UNDETERMINED: "it cycles, the evidence is unclear: do not act on it alone, nor "
+                          "clear the valve; watch the next rounds, test the valve when you "
+                          "can",
+    Verdict.NOT_OSCILLATING: "it does not cycle in this window: nothing to do about a cycle; "
+                             "this does not clear the valve (a sticky valve shows only once "
+                             "it cycles)",
+    Verdict.BAD_DATA: "the window cannot be analysed: the reason says why (gaps, frozen, "
+                      "saturated)",
+    Verdict.VALVE_NOT_RESPONDING: "OP moves, PV does not: check the valve, its positioner "
+                                  "and air now",
+    Verdict.WARMING_UP: "the loop's window is still filling: wait (fill says how far)",
+    Verdict.PROPAGATED: "its cycle comes from the group's source loop: fix that one first; "
+                        "judge this valve again once the cycle has gone",
+}
+"""Each verdict's :attr:`Verdict.advice`."""
 
 
 @dataclasses.dataclass(frozen=True, slots=True)

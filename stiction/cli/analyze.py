@@ -11,12 +11,14 @@ import json
 from pathlib import Path
 from typing import Any
 
-from .._assessment import Assessment
+from .._assessment import Assessment, Verdict
 from ..diagnosis.reasons import WHAT
-from . import batch, historian
+from . import batch, historian, ranking
 from ._common import Subparsers, UsageError
+from .every import duration as every_duration
 from .loop import SP_COLUMNS, LoopOptions, analyze_file, bursts, view
 from .plot import plot_analysis
+from .report import duration, number
 
 __all__ = ["VOTE_WORDS", "add_analyze", "bursts", "view"]
 
@@ -31,9 +33,11 @@ def add_analyze(sub: Subparsers) -> None:
         "as a process historian exports it, and prints the assessment: ',' ';' or tab "
         "separated, decimal commas, column names in any case, times in seconds or as "
         "date-times (ISO 8601 and common forms). Empty, 'nan' and text cells ('I/O "
-        "Timeout', 'Shutdown') in OP or PV are missing samples (gaps), counted. Several "
-        "files, or --manifest: one row per loop (a file that cannot be read is listed with "
-        "its error, the others analysed; exit 0 if any loop was analysed).",
+        "Timeout', 'Shutdown') in OP or PV are missing samples (gaps), counted, and so are "
+        "samples a quality column (Quality, Confidence) marks bad; a long export "
+        "(DateTime,TagName,Value) is read one column per tag. Several files, or --manifest: "
+        "one row per loop (a file that cannot be read is listed with its error, the others "
+        "analysed; exit 0 if any loop was analysed); --every: one row per window.",
     )
     p.add_argument("files", type=Path, nargs="*", metavar="FILE",
                    help="CSV file with a header row; several: one row per loop")
@@ -77,6 +81,11 @@ def add_analyze(sub: Subparsers) -> None:
                    "first row")
     p.add_argument("--to", dest="stop", default=None, metavar="TIME",
                    help="analyse up to this time (as --from)")
+    p.add_argument("--every", type=every_duration, default=None, metavar="DURATION",
+                   help="one verdict per window of this length (8h, 1d, 30min, 1w), a table "
+                   "over time: windows aligned to midnight of the first day in the file's "
+                   "zone, each analysed as --from/--to would; an end shorter than half a "
+                   "window is left out, said so (default: one verdict for the whole file)")
     historian.add_reading_options(p)
     p.add_argument("--json", action="store_true", help="print the assessment as one JSON "
                    "object; several files: one JSON array of them, each with its 'file'")
@@ -86,11 +95,13 @@ def add_analyze(sub: Subparsers) -> None:
                    "'error' column for a file not analysed")
     p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to "
                    "FILE.png; several files: a folder, one PNG per file (its name's stem)")
+    ranking.add_options(p)  # --sort, --top, --findings, --report (several files)
     p.set_defaults(handler=_cmd_analyze)
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    if args.manifest is not None or len(args.files) > 1:
+    if (args.manifest is not None or len(args.files) > 1 or args.report is not None
+            or args.every is not None):
         return batch.run(args)
     if not args.files:
         raise UsageError("analyze: give a CSV file, several, or --manifest LIST")
@@ -114,20 +125,21 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
 def _print(a: Assessment, shown: dict[str, Any]) -> None:
     print(f"verdict: {a.verdict}")
     print(f"reason:  {a.reason}")
+    print(f"means:   {a.verdict.advice}")
     for key, val in shown.items():
         if key not in {"verdict", "reason", "warnings", "evidence", "size", "weighed",
                        "stretch"} and val is not None:
-            print(f"  {key}: {val:.4g}" if isinstance(val, float) else f"  {key}: {val}")
+            print(f"  {key}: {_value(key, val, a)}")
     size = shown["size"]
     for key in ("fd", "fs", "jump", "band", "slip") if size else ():
         if size.get(key) is not None:
-            print(f"  {key}: {size[key]:.4g} {size['unit']}")
+            print(f"  {key}: {number(size[key])} {size['unit']}")
     if size and "cycles_used" in size:
         print(f"  cycles_used: {size['cycles_used']} (limit cycles whose jumps were read)")
     if a.evidence:
         print("  evidence (test, value, vote, what it saw):")
     for e in a.evidence:
-        value = "-" if e.value is None else f"{e.value:.3g}"
+        value = "-" if e.value is None else number(e.value, 3)
         vote = VOTE_WORDS[e.vote]
         print(f"    {e.test:<14} {value:>8}  {vote:<12}  {e.note}")
     if shown["weighed"]:
@@ -140,6 +152,22 @@ def _print(a: Assessment, shown: dict[str, Any]) -> None:
         st = shown["stretch"]
         print(f"  hint: analyse {st['from']} to {st['to']} alone: --from '{st['from']}' "
               f"--to '{st['to']}'")
+
+
+def _value(key: str, val: Any, a: Assessment) -> str:
+    """A field of the assessment as the text output shows it: a period as a duration, yes
+    or no for a flag, where the analysis found no regular cycle under a verdict that
+    judged one it found irregular, that."""
+    if key == "period_s":
+        return duration(val)
+    if key == "oscillating":
+        if val:
+            return "yes, a regular cycle"
+        judged = a.verdict in (Verdict.STICTION, Verdict.NO_STICTION, Verdict.UNDETERMINED)
+        return "no regular cycle (the verdict judged an irregular one)" if judged else "no"
+    if isinstance(val, bool):
+        return "yes" if val else "no"
+    return number(val) if isinstance(val, float) else str(val)
 
 
 VOTE_WORDS = {1: "stiction", -1: "not stiction", 0: "cannot tell"}

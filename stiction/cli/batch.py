@@ -14,64 +14,62 @@ from __future__ import annotations
 
 import argparse
 import csv
-import dataclasses
 import json
 import re
 import shutil
 import sys
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
 from .._errors import ParameterError, StictionError
+from . import ranking
 from ._common import UsageError, param_option, pyplot
+from .every import every
 from .loop import LoopOptions, analyze_file
 from .manifest import COLUMNS, Loop, read_manifest
 from .plot import plot_analysis
+from .report import Row, legend, short_reason, table
 
-__all__ = ["COLUMNS", "Row", "flatten", "run", "table", "write_csv"]
-
-
-@dataclasses.dataclass(frozen=True)
-class Row:
-    """One file of the batch: what ``--json`` shows of it alone, or why it was not analysed."""
-
-    file: Path | str
-    shown: Mapping[str, Any] | None = None
-    error: str | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON array's object: ``file`` and the single-file ``--json`` keys, or
-        ``file`` and ``error``."""
-        if self.shown is None:
-            return {"file": str(self.file), "error": self.error}
-        return {"file": str(self.file), **self.shown}
+__all__ = ["COLUMNS", "Row", "flatten", "run", "short_reason", "spreadsheet_text", "table",
+           "write_csv"]
 
 
 def run(args: argparse.Namespace) -> int:
-    """The batch: every file of the command line, then every loop of ``--manifest``."""
+    """The batch: every file of the command line, then every loop of ``--manifest``; with
+    ``--every``, every window of each."""
     base = LoopOptions.from_args(args)
     loops = [Loop(str(p), p, base) for p in args.files]
     if args.manifest is not None:
         loops += read_manifest(args.manifest, base)
     if args.csv is not None and not args.csv.parent.is_dir():
         raise UsageError(f"--csv {args.csv}: no folder {args.csv.parent}")
+    if args.every is not None and args.plot is not None:
+        raise UsageError("--plot draws one window: give --from/--to for the one to draw "
+                         "instead of --every")
     plots = None if args.plot is None else _plot_names(args.plot, loops)
     bar = Progress(len(loops)) if sys.stderr.isatty() else None
-    rows = []
+    rows: list[Row] = []
+    notes: list[str] = []
     for i, loop in enumerate(loops):
         if bar is not None:
             bar.show(i, loop.label)
-        rows.append(_one(loop, None if plots is None else plots[i]))
+        got, said = _one(loop, None if plots is None else plots[i], args.every)
+        rows += got
+        notes += said if len(loops) == 1 else []
     if bar is not None:
         bar.clear()
+    rows, said = ranking.finish(rows, loops, args)  # worst first, --findings, --report
+    ranking.warn(said)
     if args.json:
         print(json.dumps([r.to_dict() for r in rows]))
     else:
-        print(table(rows, width=shutil.get_terminal_size((120, 24)).columns))
+        tty = sys.stdout.isatty()
+        print(table(rows, width=shutil.get_terminal_size((120, 24)).columns if tty else None))
+        print("\n".join([*legend(rows), *(f"warning: {n}" for n in notes)]))
     if args.csv is not None:
         write_csv(args.csv, rows)
-    for done in (args.plot, args.csv):
+    for done in (args.plot, args.csv, args.report):
         if done is not None and not args.json:
             print(f"wrote {done}")
     failed = sum(r.error is not None for r in rows)
@@ -84,22 +82,27 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _one(loop: Loop, plot: Path | None) -> Row:
-    """One loop analysed, or its error (the message ``stiction analyze FILE`` would print)."""
+def _one(loop: Loop, plot: Path | None, length: float | None) -> tuple[list[Row], list[str]]:
+    """One loop analysed (every window of it with ``length``), or its error (the message
+    ``stiction analyze FILE`` would print); and the notes of reading it, once."""
     if loop.error is not None:
-        return Row(loop.label, error=loop.error)
+        return [Row(loop.label, error=loop.error)], []
     try:
+        if length is not None:
+            windows, notes = every(loop.path, loop.options, length)
+            return [Row(loop.label, w.analysed.shown, window=(w.start, w.stop))
+                    for w in windows], notes
         got = analyze_file(loop.path, loop.options)
         if plot is not None:
             plot_analysis(plot, got.details, got.ts, got.op_range, got.clock)
     except ParameterError as exc:
-        return Row(loop.label, error=f"{param_option(exc.name)}: {exc}")
+        return [Row(loop.label, error=f"{param_option(exc.name)}: {exc}")], []
     except (UsageError, StictionError) as exc:
-        return Row(loop.label, error=str(exc))
+        return [Row(loop.label, error=str(exc))], []
     except Exception as exc:  # a bug on one file: the unit's other loops are still analysed
-        return Row(loop.label, error=f"internal error ({type(exc).__name__}: {exc}); please "
-                                     "report it with this file")
-    return Row(loop.label, got.shown)
+        return [Row(loop.label, error=f"internal error ({type(exc).__name__}: {exc}); please "
+                                      "report it with this file")], []
+    return [Row(loop.label, got.shown, analysed=got)], []
 
 
 def _plot_names(folder: Path, loops: Sequence[Loop]) -> list[Path]:
@@ -146,54 +149,6 @@ class Progress:
         self.stream.flush()
 
 
-# ------------------------------------------------------------------------- the table
-HEAD = ("file", "verdict", "conf", "fd", "fs", "unit", "period", "reason")
-_OPENING = re.compile(r"^(?:stiction|not stiction|undetermined), confidence(?: of stiction)? "
-                      r"[\d.]+[.:]\s*")
-
-
-def short_reason(reason: str) -> str:
-    """The reason without its opening (the verdict and confidence, columns of their own),
-    to its first sentence."""
-    text = _OPENING.sub("", reason)
-    end = text.find(". ")
-    return text if end < 0 else text[: end + 1]
-
-
-def _cells(row: Row) -> list[str]:
-    if row.shown is None:
-        error = row.error or ""
-        prefix = f"{row.file}: "
-        return [str(row.file), "error", "-", "-", "-", "-", "-",
-                error[len(prefix):] if error.startswith(prefix) else error]
-    s = row.shown
-    size = s.get("size") or {}
-
-    def num(x: Any) -> str:
-        return "-" if x is None else f"{x:.3g}"
-
-    period = "-" if s.get("period_s") is None else f"{s['period_s']:.0f} s"
-    conf = "-" if s.get("confidence") is None else f"{s['confidence']:.2f}"
-    return [str(row.file), str(s["verdict"]), conf, num(size.get("fd")), num(size.get("fs")),
-            size.get("unit", "-"), period, short_reason(str(s["reason"]))]
-
-
-def table(rows: Iterable[Row], *, width: int = 120) -> str:
-    """One line per loop under a header, columns aligned; the reason cut to fit ``width``
-    (the terminal's) with '...' (the whole reason is in --json and --csv)."""
-    lines = [list(HEAD), *(_cells(r) for r in rows)]
-    widths = [max(len(line[j]) for line in lines) for j in range(len(HEAD) - 1)]
-    left = {0, 1, 5}
-    room = max(30, width - sum(widths) - 2 * len(widths) - 1)
-    out = []
-    for line in lines:
-        cells = [c.ljust(w) if j in left else c.rjust(w)
-                 for j, (c, w) in enumerate(zip(line, widths, strict=False))]
-        reason = line[-1] if len(line[-1]) <= room else line[-1][: room - 3] + "..."
-        out.append("  ".join([*cells, reason]).rstrip())
-    return "\n".join(out)
-
-
 # --------------------------------------------------------------------------- the CSV
 FIRST = ("file", "error", "verdict", "confidence", "size.unit", "size.fd", "size.fs",
          "size.jump", "period_s", "reason")
@@ -221,25 +176,43 @@ def flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
+FORMULA_FIRST = ("=", "+", "-", "@", "\t", "\r")
+"""A cell whose text starts with one of these a spreadsheet may evaluate as a formula (OWASP,
+"CSV injection"); written after an apostrophe, as text, unless it is a plain number."""
+_PLAIN_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def spreadsheet_text(text: str) -> str:
+    """``text`` as a spreadsheet shows it without evaluating it: one that starts like a
+    formula (:data:`FORMULA_FIRST`) gets a leading apostrophe, the mark of a text cell; a
+    plain number (``-0.25``, ``+3``, ``-1e-05``) stays a number."""
+    if text[:1] in FORMULA_FIRST and _PLAIN_NUMBER.fullmatch(text) is None:
+        return "'" + text
+    return text
+
+
 def _cell(value: Any) -> str:
     if value is None:
         return ""
     if isinstance(value, bool):
         return "true" if value else "false"
-    return repr(value) if isinstance(value, float) else str(value)
+    return spreadsheet_text(repr(value) if isinstance(value, float) else str(value))
 
 
 def write_csv(path: Path, rows: Sequence[Row]) -> None:
     """The rows flattened (:func:`flatten`) to ``path``: UTF-8 with a byte-order mark, as a
-    spreadsheet reads it; floats written in full (``repr``), null and absent keys empty."""
+    spreadsheet reads it; floats written in full (``repr``), null and absent keys empty,
+    a text that a spreadsheet would evaluate written as text (:func:`spreadsheet_text`)."""
     flat = [flatten(r.to_dict()) for r in rows]
     columns = list(FIRST)
+    if any(r.window is not None for r in rows):
+        columns[2:2] = ["from", "to"]
     for f in flat:
         columns += [k for k in f if k not in columns]
     try:
         with path.open("w", newline="", encoding="utf-8-sig") as fh:
             w = csv.writer(fh)
-            w.writerow(columns)
+            w.writerow([spreadsheet_text(c) for c in columns])
             w.writerows([_cell(f.get(c)) for c in columns] for f in flat)
     except OSError as exc:
         raise UsageError(f"--csv {path}: cannot write: {exc.strerror or exc}") from exc

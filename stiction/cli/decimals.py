@@ -21,8 +21,9 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-__all__ = ["COMMA", "POINT", "Ambiguous", "Column", "Mixed", "decide", "grouped", "is_number",
-           "kind", "read_column", "tally", "value"]
+__all__ = ["COMMA", "POINT", "Ambiguous", "Column", "Mixed", "both_readings", "decide",
+           "grouped", "is_number", "kind", "read_column", "read_text_chunk", "tally",
+           "tally_text", "value"]
 
 POINT, COMMA = ".", ","
 BOTH = "both"
@@ -135,6 +136,67 @@ def kind(cell: str) -> str | None:
     if point is None:
         return None if comma is None else COMMA
     return POINT if comma is None else BOTH
+
+
+_BOTH_CELL = re.compile(r"^[^\S\n]*[-+]?[1-9]\d{0,2}[.,]\d{3}[^\S\n]*$", re.M)
+"""A cell that reads as two numbers (``1,118``, ``50.125``): :func:`kind` ``"both"``."""
+_TELLING = re.compile(r"^(?![^\S\n]*[-+]?[1-9]\d{0,2}[.,]\d{3}[^\S\n]*$)"
+                      r"[^\n:/A-DF-Za-df-z]*[.,][^\n:/A-DF-Za-df-z]*$", re.M)
+"""A cell with a decimal mark that may tell which one is the decimal mark: not of the form
+that reads two ways, and without a letter (but the exponent's e), a colon or a slash, which
+no number has."""
+
+
+def tally_text(text: str, start: int, first: dict[str, int]) -> bool:
+    """:func:`tally` (``decisive``) of a chunk of cells joined by ``"\n"`` whose first cell
+    is cell ``start`` of the column, into ``first`` (the column's evidence so far); whether
+    the column is now decided (a cell needs ``.`` or ``,``). Regular expressions over the
+    whole chunk find the cells that matter, so a column of a million cells that all read
+    two ways is tallied in C, not cell by cell."""
+    if POINT in first or COMMA in first:
+        return True
+    end, pos, found = len(text), 0, None
+    while (m := _TELLING.search(text, pos)) is not None:
+        k = kind(m.group())
+        if k is not None and k != BOTH:
+            end, found = m.start(), k
+            break
+        if k == BOTH and BOTH not in first:
+            first[BOTH] = start + text.count("\n", 0, m.start())
+        pos = m.end() + 1
+    if BOTH not in first or first[BOTH] >= start:
+        b = _BOTH_CELL.search(text, 0, end)
+        if b is not None:
+            at = start + text.count("\n", 0, b.start())
+            first[BOTH] = min(first.get(BOTH, at), at)
+    if found is None:
+        return False
+    first[found] = start + text.count("\n", 0, end)
+    return True
+
+
+def read_text_chunk(cells: Sequence[str], text: str, mark: str) -> Column:
+    """:func:`read_column` of a chunk (``text``: the cells joined by ``"\n"``): every cell at
+    once where no cell needs more than ``float`` (the common case: no thousands grouped, no
+    text), else cell by cell."""
+    other = _OTHER[mark]
+    if "_" not in text and other not in text:
+        plain = cells if mark == POINT else text.replace(",", ".").split("\n")
+        try:
+            return Column(np.fromiter(map(float, plain), float, len(cells)),
+                          collections.Counter(), None, None)
+        except ValueError:
+            pass
+    return read_column(cells, mark)
+
+
+def both_readings(text: str) -> tuple[list[float], list[float]]:
+    """The cells of a chunk that read two ways (``1.118``, ``44,000``), each read with its
+    mark as the decimal mark: those written with ``.`` and those written with ``,``. Read
+    with the mark as a thousands separator each is 1000 times as large."""
+    cells = [c.strip() for c in _BOTH_CELL.findall(text)]
+    return ([float(c) for c in cells if "." in c],
+            [float(c.replace(",", ".")) for c in cells if "," in c])
 
 
 def tally(cells: Iterable[str], *, decisive: bool = False) -> dict[str, int]:

@@ -20,12 +20,14 @@ import numpy as np
 from .._assessment import Assessment, Verdict
 from ..diagnosis.analyze import Details, analyze_details
 from ..diagnosis.stretch import Stretch, regular_stretch
-from . import historian
+from . import decimals, historian
 from ._common import UsageError
+from .grid import SKIPPED_HOUR
+from .memory import affordable, readable
 from .plot import Clock, window_clock
 
-__all__ = ["SP_COLUMNS", "Analysed", "FileTime", "LoopOptions", "analyze_file", "bursts",
-           "view"]
+__all__ = ["SP_COLUMNS", "Analysed", "FileTime", "Loaded", "LoopOptions", "analyze_file",
+           "bursts", "judge", "load", "view"]
 
 SP_COLUMNS = ("sp", "setpoint", "set point", "set_point")
 """Column names read as the setpoint when ``--sp`` is not given (any case), in this order."""
@@ -76,55 +78,105 @@ class Analysed:
     clock: Clock
 
 
-def analyze_file(path: Path, o: LoopOptions) -> Analysed:
-    """Read ``path`` as ``o`` says (:mod:`.historian`) and analyse its window; unusable input
-    raises :class:`~stiction.cli._common.UsageError` naming it, a bad option value
-    :class:`~stiction.ParameterError`."""
-    table = historian.read_table(path, decimal=o.decimal, tz=o.tz)
+@dataclasses.dataclass(frozen=True)
+class Loaded:
+    """One file read as ``o`` says: its samples on the grid between ``--from`` and ``--to``
+    (``first``: the grid index of the first), the sample time, the file's time, the notes."""
+
+    op: np.ndarray
+    pv: np.ndarray
+    position: np.ndarray | None
+    sp: np.ndarray | None
+    ts: float
+    first: int
+    clock: FileTime
+    stamps: historian.Stamps | None
+    notes: list[str]
+
+    @property
+    def size(self) -> int:
+        return int(self.op.size)
+
+
+def load(path: Path, o: LoopOptions) -> Loaded:
+    """Read ``path`` as ``o`` says (:mod:`.historian`); unusable input raises
+    :class:`~stiction.cli._common.UsageError` naming it."""
     wanted = [(o.op, "--op"), (o.pv, "--pv")]
     if o.position is not None:
         wanted.append((o.position, "--position"))
-    sp_name = _sp_column(table, o)
+    sp_names: list[str] = []
+
+    def select(header: list[str]) -> list[int]:
+        sp_names.extend(n for n in [_sp_column(header, o)] if n is not None)
+        return historian.needed(header, path, wanted + [(n, "--sp") for n in sp_names],
+                                o.time, o.ts)
+
+    readable(path)
+    table = historian.read_table(path, decimal=o.decimal, tz=o.tz, select=select)
+    if not sp_names:  # a long export, turned wide: its columns are its tags
+        sp_names += [n for n in [_sp_column(table.header, o)] if n is not None]
+    sp_name = sp_names[0] if sp_names else None
     if sp_name is not None:
         wanted.append((sp_name, "--sp"))
-    got = historian.read_signals(table, wanted, o.time, o.ts)
+    got = historian.read_signals(table, wanted, o.time, o.ts, o.op_range)
     table = got.table  # oldest first
     op, pv = got.series[0], got.series[1]
     pos = got.series[2] if o.position is not None else None
     sp = got.series[-1] if sp_name is not None else None
-    ts, t, t_col, notes = got.ts, got.stamps, got.t_col, got.notes
-    secs = np.arange(len(table.rows)) * ts if t is None else t.seconds
-    clock = FileTime(table, t_col, secs, ts)
+    ts, t = got.ts, got.stamps
+    secs = np.arange(table.size) * ts if t is None else t.seconds
+    clock = FileTime(table, got.t_col, secs, ts)
     first, op, pv = clock.cut(o, op, pv)
-    if pos is not None:
-        pos = pos[first:first + op.size]
-    if sp is not None:
-        sp = sp[first:first + op.size]
+    pos = None if pos is None else pos[first:first + op.size]
+    sp = None if sp is None else sp[first:first + op.size]
+    return Loaded(op, pv, pos, sp, ts, first, clock, t, got.notes)
+
+
+def analyze_file(path: Path, o: LoopOptions) -> Analysed:
+    """Read ``path`` as ``o`` says (:func:`load`) and analyse its window (:func:`judge`); a
+    bad option value raises :class:`~stiction.ParameterError`."""
+    return judge(load(path, o), o)
+
+
+def judge(got: Loaded, o: LoopOptions, a: int = 0, b: int | None = None) -> Analysed:
+    """The samples ``a`` to ``b`` (default: all) of a file read (:func:`load`) analysed,
+    once their analysis fits in memory (:func:`.memory.affordable`)."""
+    b = got.size if b is None else b
+    affordable(b - a, got.ts, got.clock.table.path)
+    op, pv, ts, t = got.op[a:b], got.pv[a:b], got.ts, got.stamps
+    pos = None if got.position is None else got.position[a:b]
+    sp = None if got.sp is None else got.sp[a:b]
     d = analyze_details(op, pv, ts=ts, kp=o.kp, delay=o.delay, process=o.process,
                         op_range=o.op_range, position=pos, sp=sp)
+    first = got.first + a
     # the plot's axis, the file's time: the samples judged (after a leading gap, SP steps)
     shown_from = window_clock(t, ts, op, pv)
     if d.op is not None:
         shown_from = Clock((0.0 if t is None else float(t.seconds[0])) + d.start * ts,
                            shown_from.zone)
     shown_from = dataclasses.replace(shown_from, start=shown_from.start + first * ts)
-    a = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
+    notes = got.notes
+    a_ = dataclasses.replace(d.assessment, warnings=(*notes, *d.assessment.warnings))
+    skipped = next((n for n in notes if n.startswith(SKIPPED_HOUR)), None)
+    if skipped is not None and a_.verdict == Verdict.BAD_DATA:  # the gap is the clock's
+        a_ = dataclasses.replace(a_, reason=f"{a_.reason} ({skipped.split(': ')[0]}: local "
+                                 "time without --tz? See the warning)")
     stretch = bursts(d)
     if stretch is not None:
-        a = dataclasses.replace(a, reason=a.reason + stretch.reason(ts))
-    shown = view(a, d, clock.stretch(stretch, first + d.start) if stretch else None)
-    return Analysed(shown, a, d, ts, o.op_range, shown_from)
+        a_ = dataclasses.replace(a_, reason=a_.reason + stretch.reason(ts))
+    shown = view(a_, d, got.clock.stretch(stretch, first + d.start) if stretch else None)
+    return Analysed(shown, a_, d, ts, o.op_range, shown_from)
 
 
-def _sp_column(table: historian.Table, o: LoopOptions) -> str | None:
+def _sp_column(header: list[str], o: LoopOptions) -> str | None:
     """The setpoint column to read: ``--sp``'s, else the first of :data:`SP_COLUMNS` the
     header has (any case), unless ``--no-sp``; None: no setpoint."""
     if o.no_sp:
         return None
     if o.sp is not None:
         return o.sp
-    folded = [h.casefold() for h in table.header]
-    return next((table.header[folded.index(n)] for n in SP_COLUMNS if n in folded), None)
+    folded = [h.casefold() for h in header]
+    return next((header[folded.index(n)] for n in SP_COLUMNS if n in folded), None)
 
 
 def bursts(d: Details) -> Stretch | None:
@@ -164,9 +216,11 @@ class FileTime:
             except ValueError:
                 raise UsageError(f"{option} {text!r}: with --ts give seconds from the first "
                                  "row") from None
-        row = [""] * len(self.table.header)
-        row[self.col] = text
-        one = dataclasses.replace(self.table, rows=[row], lines=[0])
+        evidence: dict[str, int] = {}
+        decimals.tally_text(text, 0, evidence)
+        one = dataclasses.replace(self.table, columns={self.col: historian.Cells.of([text])},
+                                  lines=np.zeros(1, dtype=np.int64),
+                                  evidence={self.col: evidence}, memo={})
         try:
             return float(historian.times(one, self.col).seconds[0])
         except UsageError:
@@ -193,7 +247,7 @@ class FileTime:
         if self.col is None:
             return f"{at:g}"
         i = int(np.argmin(np.abs(self.t - at)))
-        return self.table.rows[i][self.col].strip()
+        return self.table.cell(i, self.col)
 
     def stretch(self, st: Stretch, first: int) -> dict[str, Any]:
         """The stretch in the file's time (``first``: the window's first sample)."""

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import math
 from pathlib import Path
 from typing import Any
 
 from ..diagnosis.analyze import PROCESSES
+from . import decimals, stamps
 from ._common import UsageError
 from .loop import LoopOptions
 from .table import read_text
@@ -25,7 +27,7 @@ from .table import read_text
 __all__ = ["COLUMNS", "Loop", "read_manifest"]
 
 COLUMNS = ("file", "ts", "process", "op_lo", "op_hi", "kp", "delay", "op", "pv", "position",
-           "time", "sp")
+           "time", "sp", "tz", "decimal", "loop", "priority")
 """The columns a manifest may have (any case, any order); ``file`` is required."""
 
 
@@ -38,18 +40,24 @@ class Loop:
     path: Path
     options: LoopOptions
     error: str | None = None
+    name: str = ""  # the loop (the ``loop`` column; "": the file's name), for --findings
+    priority: float = 1.0  # its weight in the list worst first (:mod:`.ranking`)
 
 
 def read_manifest(path: Path, base: LoopOptions) -> list[Loop]:
     """The loops ``path`` lists, each with ``base`` under its own cells."""
-    lines = read_text(path, named=" (--manifest)")[0].splitlines()
-    numbered = [(i + 1, line) for i, line in enumerate(lines) if line.strip()]
-    if not numbered:
+    text = read_text(path, named=" (--manifest)")[0]
+    first = next((line for line in text.splitlines() if line.strip()), None)
+    if first is None:
         raise UsageError(f"{path}: empty manifest (need a header row naming the column 'file')")
-    first = numbered[0][1]
     delimiter = max((",", ";", "\t"), key=first.count)
-    rows = [(n, row) for (n, _), row in zip(
-        numbered, csv.reader([line for _, line in numbered], delimiter=delimiter), strict=True)]
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
+    rows = []  # (line, cells): a quoted cell may hold a line break
+    line = 1
+    for row in reader:
+        if any(c.strip() for c in row):
+            rows.append((line, row))
+        line = reader.line_num + 1
     head_line, header = rows[0]
     names = [h.strip().casefold() for h in header]
     for name in names:
@@ -77,9 +85,11 @@ def _loop(manifest: Path, line: int, names: list[str], row: list[str], base: Loo
     path = manifest.parent / cells["file"]
     try:
         options = dataclasses.replace(base, **_changes(cells))
+        priority = _number(cells, "priority", lambda v: v > 0, "> 0") \
+            if "priority" in cells else 1.0
     except ValueError as exc:
-        return Loop(str(path), path, base, f"{where}: {exc}")
-    return Loop(str(path), path, options)
+        return Loop(str(path), path, base, f"{where}: {exc}", cells.get("loop", ""))
+    return Loop(str(path), path, options, name=cells.get("loop", ""), priority=priority)
 
 
 def _changes(cells: dict[str, str]) -> dict[str, Any]:
@@ -96,6 +106,15 @@ def _changes(cells: dict[str, str]) -> dict[str, Any]:
         got["kp"] = _number(cells, "kp", lambda v: v != 0, "not 0")
     if "delay" in cells:
         got["delay"] = _number(cells, "delay", lambda v: v >= 0, ">= 0")
+    if "tz" in cells:
+        try:
+            got["tz"] = stamps.parse_tz(cells["tz"])
+        except ValueError as exc:
+            raise ValueError(f"column 'tz': {exc}") from None
+    if "decimal" in cells:
+        if cells["decimal"] not in (decimals.POINT, decimals.COMMA):
+            raise ValueError(f"column 'decimal': {cells['decimal']!r} is not '.' or ','")
+        got["decimal"] = cells["decimal"]
     if "process" in cells:
         process = cells["process"].casefold()
         if process not in PROCESSES:

@@ -19,7 +19,8 @@ __all__ = ["LEGEND", "as_json", "print_text", "spectral_map", "text_lines"]
 LEGEND = (
     "confidence: the per-loop analysis' confidence that the loop's own valve sticks (0-1; "
     "stiction from 0.87). role: source (its cycle starts there) or follower (it carries a "
-    "cycle from elsewhere; called stiction alone, it reads propagated); '-' in no group.")
+    "cycle from elsewhere; called stiction alone, it reads propagated); kept: called "
+    "stiction, in a group whose evidence does not overturn its call; '-' in no group.")
 RANKING_HEADER = ("loop", "score", "own verdict", "valve", "Granger", "NLI", "lag s")
 RANKING_LEGEND = (
     "score: the rank (higher: likelier the source); own verdict: the per-loop analysis; "
@@ -48,16 +49,21 @@ def _evidence(e: MemberEvidence) -> dict[str, Any]:
 def as_json(view: PlantAssessment, after: dict[str, Assessment], notes: list[str]
             ) -> dict[str, Any]:
     """``groups`` (each with ``loops``, ``indicators``, ``period_s``, ``source``,
-    ``named_by``, ``entry``, ``source_ranking`` with every evidence's figure) and ``loops``
+    ``named_by``, ``entry``, ``source_ranking`` with every evidence's figure, ``marginal``:
+    the signals that may carry its cycle but not clearly, with their share; ``kept``: the
+    loops called ``stiction`` whose call stands, with why; ``upstream``: an indicator that
+    leads the cycle while a loop is its source) and ``loops``
     (each with ``loop``, ``verdict``, ``confidence``, ``group``, ``role``, ``reason``)."""
     return {
         "groups": [{
             "group": g.number, "period_s": g.period_s, "unit": g.unit, "loops": list(g.loops),
             "indicators": [m.name for m in g.members if m.kind == "indicator"],
             "strength": {m.name: round(m.strength, 4) for m in g.members},
+            "marginal": {m.name: round(m.strength, 4) for m in g.marginal},
             "source": g.source, "also_sources": list(g.also_sources),
             "named_by": list(g.named_by), "entry": g.entry, "external": g.external,
             "reason": g.reason, "followers_called_stiction": dict(g.demoted),
+            "kept": dict(g.kept), "upstream": g.upstream,
             "source_ranking": [_evidence(e) for e in g.ranking],
             "indicator_evidence": [{"name": i.name, "strength": i.strength,
                                     "granger_flow": i.flow, "nli": i.nli}
@@ -77,7 +83,8 @@ def _group_text(g: Group) -> list[str]:
     count = f"{len(loops)} loop{'s' if len(loops) != 1 else ''}" + \
         (f" and {len(inds)} indicator{'s' if len(inds) != 1 else ''}" if inds else "")
     if g.source is not None:
-        where = f"source {g.source} (named by {', '.join(g.named_by)})"
+        where = f"source {g.source} (named by {', '.join(g.named_by)})" + (
+            f", also fed from outside? (indicator {g.upstream} leads it)" if g.upstream else "")
     elif g.entry is not None:
         where = f"enters from outside (indicator {g.entry} leads it)"
     else:
@@ -87,6 +94,9 @@ def _group_text(g: Group) -> list[str]:
            "  loops: " + ", ".join(f"{m.name} {m.strength:.0%}" for m in loops)]
     if inds:
         out.append("  indicators: " + ", ".join(f"{m.name} {m.strength:.0%}" for m in inds))
+    if g.marginal:
+        out.append("  in the margin (may carry it, not clearly: no role): " + ", ".join(
+            f"{m.name} {m.strength:.0%}" for m in g.marginal))
     out.append("  (each member's share of its power in the cycle's band)")
     out.append("  source ranking:")
     rows = [RANKING_HEADER] + [(
@@ -117,7 +127,7 @@ def text_lines(view: PlantAssessment, after: dict[str, Assessment], notes: list[
     rows = [("loop", "verdict", "confidence", "plant role", "reason")]
     for tag, a in after.items():
         role = view.roles[tag]
-        place = f"group {role.group} {role.role}" if role.group else "-"
+        place = "-" if not role.group else f"group {role.group} {role.role or 'kept'}"
         rows.append((tag, str(a.verdict), _fmt(a.confidence, ".2f"), place, a.reason))
     widths = [max(len(r[k]) for r in rows) for k in range(4)]
     out += ["  ".join(c.ljust(w) for c, w in zip(r[:4], widths, strict=True)) + "  " + r[4]

@@ -13,7 +13,6 @@ time read in the order of the rows.
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as dt
 import functools
 import re
@@ -22,8 +21,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["AMBIGUOUS", "DATE_FORMATS", "EPOCH_UNITS", "EXAMPLES", "ZONES", "Dates",
-           "ZoneError", "epoch_unit", "is_date", "is_time_of_day", "parse_tz", "read_dates",
+__all__ = ["AMBIGUOUS", "DATE_FORMATS", "EPOCH_UNITS", "EXAMPLES", "OFFSET", "SUFFIX", "ZONES",
+           "ZoneError", "epoch_unit", "fixed", "is_date", "is_time_of_day", "parse", "parse_tz",
            "serial_days", "serial_text", "times_of_day"]
 
 DATE_FORMATS = (
@@ -60,10 +59,10 @@ AMBIGUOUS: dict[str, str] = {
 }
 """Abbreviations that name several zones: read only with ``--tz``."""
 
-_SUFFIX = re.compile(r"\s+(?:(?P<abbr>[A-Za-z]{1,5})(?P<off>[+-]\d{1,2}(?::?\d{2})?)?"
+SUFFIX = re.compile(r"\s+(?:(?P<abbr>[A-Za-z]{1,5})(?P<off>[+-]\d{1,2}(?::?\d{2})?)?"
                      r"|(?P<num>[+-]\d{2}:?\d{2}))$")
 _EPOCH = dt.datetime(1970, 1, 1)
-_OFFSET = re.compile(r"(?:UTC|GMT)?([+-])(\d{1,2})(?::?(\d{2}))?")
+OFFSET = re.compile(r"(?:UTC|GMT)?([+-])(\d{1,2})(?::?(\d{2}))?")
 
 
 class ZoneError(Exception):
@@ -77,9 +76,9 @@ class ZoneError(Exception):
 def parse_tz(text: str) -> dt.tzinfo:
     """``--tz``: an IANA zone name (``Europe/Berlin``), ``UTC``, or an offset (``+01:00``,
     ``-0500``, ``UTC+1``); ValueError naming what it may be."""
-    m = _OFFSET.fullmatch(text.strip())
+    m = OFFSET.fullmatch(text.strip())
     if m:
-        return _fixed(m)
+        return fixed(m)
     if text.strip().upper() in ("UTC", "GMT", "Z"):
         return dt.UTC
     try:
@@ -89,136 +88,9 @@ def parse_tz(text: str) -> dt.tzinfo:
                          "America/Chicago, or an offset such as +01:00") from None
 
 
-def _fixed(m: re.Match[str]) -> dt.timezone:
+def fixed(m: re.Match[str]) -> dt.timezone:
     sign = -1 if m[1] == "-" else 1
     return dt.timezone(sign * dt.timedelta(hours=int(m[2]), minutes=int(m[3] or 0)))
-
-
-@dataclasses.dataclass(frozen=True)
-class Dates:
-    """Date-time cells read: Unix seconds and the zone to show them in."""
-
-    seconds: np.ndarray
-    zone: dt.tzinfo
-    """The zone of the first stamp (``--tz``, or the one it names; UTC for one without)."""
-    note: str | None = None
-    """How zones named by the stamps were read, when they named any."""
-
-
-def read_dates(cells: Sequence[str], tz: dt.tzinfo | None = None) -> Dates | None:
-    """Unix seconds of every cell under the first form that reads them all (of two that
-    do, the one under which time never goes back), or None when no form reads them all.
-    Raises :class:`ZoneError` for a zone that needs ``--tz``, or stamps with and without
-    a zone in one column."""
-    bodies: list[str] = []
-    tokens: list[str | None] = []
-    for c in cells:
-        m = _SUFFIX.search(c)
-        if m is None or (m["abbr"] and m["abbr"].upper() in ("AM", "PM") and not m["off"]):
-            bodies.append(c)
-            tokens.append(None)
-        else:
-            bodies.append(c[:m.start()])
-            tokens.append(m.group(0).strip())
-    zones = _zones(tokens, tz)
-    fallback = None
-    for form in ("iso", *DATE_FORMATS):
-        stamps = _parse_all(bodies, form)
-        if stamps is None:
-            continue
-        got = _seconds(stamps, tokens, zones, tz)
-        if np.all(np.diff(got.seconds) >= 0):
-            return got
-        fallback = fallback if fallback is not None else got
-    return fallback
-
-
-def _parse_all(bodies: Sequence[str], form: str) -> list[dt.datetime] | None:
-    out = []
-    for b in bodies:
-        stamp = _parse(b, form)
-        if stamp is None:
-            return None
-        out.append(stamp)
-    return out
-
-
-def _zones(tokens: Sequence[str | None], tz: dt.tzinfo | None) -> dict[str, dt.tzinfo]:
-    """Each zone token of the column -> its zone (``tz`` for an ambiguous one)."""
-    out: dict[str, dt.tzinfo] = {}
-    for i, token in enumerate(tokens):
-        if token is None or token in out:
-            continue
-        abbr = token.upper()
-        m = _OFFSET.fullmatch(abbr)
-        if m is not None:
-            out[token] = _fixed(m)
-        elif abbr in ZONES:
-            out[token] = dt.timezone(dt.timedelta(hours=ZONES[abbr]), abbr)
-        elif tz is not None:
-            out[token] = tz
-        elif abbr in AMBIGUOUS:
-            raise ZoneError(f"zone {token!r} names several zones ({AMBIGUOUS[abbr]}): give "
-                            "--tz with the historian's zone (e.g. --tz America/Chicago or "
-                            "--tz -06:00)", i)
-        else:
-            raise ZoneError(f"zone {token!r} is not one this reader knows: give --tz with "
-                            "the historian's zone (e.g. --tz Europe/Berlin or --tz +01:00)", i)
-    return out
-
-
-def _seconds(stamps: Sequence[dt.datetime], tokens: Sequence[str | None],
-             zones: dict[str, dt.tzinfo], tz: dt.tzinfo | None) -> Dates:
-    out = np.empty(len(stamps))
-    named = [k is not None or s.tzinfo is not None for s, k in zip(stamps, tokens, strict=True)]
-    if tz is None and any(named) and not all(named):
-        raise ZoneError("some time stamps name a zone and some do not: give --tz with the "
-                        "zone of those that do not", named.index(False))
-    prev = -np.inf
-    fixed: dict[str | None, float] = {  # zone -> seconds east of UTC, for fixed offsets
-        k: z.utcoffset(None).total_seconds()
-        for k, z in [*zones.items(), (None, tz or dt.UTC)] if isinstance(z, dt.timezone)}
-    for i, (s, token) in enumerate(zip(stamps, tokens, strict=True)):
-        if s.tzinfo is not None and token is None:
-            out[i] = prev = s.timestamp()
-        elif token in fixed:  # the common case: no zone, or a fixed one; ten times faster
-            out[i] = prev = (s.replace(tzinfo=None) - _EPOCH).total_seconds() - fixed[token]
-        else:
-            zone = zones[token] if token is not None else tz or dt.UTC
-            out[i] = prev = _localise(s.replace(tzinfo=None), zone, token, prev, i).timestamp()
-    first = stamps[0].tzinfo if tokens[0] is None else zones[tokens[0]]
-    note = None
-    shown = sorted({k for k in tokens if k is not None})
-    if shown:
-        note = "time zones read: " + ", ".join(
-            f"{k} {_offset_text(zones[k], stamps[tokens.index(k)])}" for k in shown[:6])
-    return Dates(out, tz or first or dt.UTC, note)
-
-
-def _localise(s: dt.datetime, zone: dt.tzinfo, token: str | None, prev: float, row: int
-              ) -> dt.datetime:
-    """A wall-clock time in ``zone``: in the repeated hour of a daylight-saving change the
-    one whose abbreviation is ``token``, else the one that does not go back in time."""
-    first = s.replace(tzinfo=zone)
-    if not isinstance(zone, zoneinfo.ZoneInfo):
-        return first
-    second = s.replace(tzinfo=zone, fold=1)
-    if token is not None:
-        for c in (first, second):
-            if c.tzname() == token.upper():
-                return c
-        raise ZoneError(f"zone {token!r} is not {zone.key}'s at {s:%Y-%m-%d %H:%M} "
-                        f"({first.tzname()}): give --tz with the historian's zone", row)
-    if first.utcoffset() != second.utcoffset() and first.timestamp() < prev:
-        return second
-    return first
-
-
-def _offset_text(zone: dt.tzinfo, at: dt.datetime) -> str:
-    off = zone.utcoffset(at.replace(tzinfo=None)) or dt.timedelta(0)
-    minutes = int(off.total_seconds() // 60)
-    sign = "-" if minutes < 0 else "+"
-    return f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
 
 
 _FIELDS = {
@@ -239,7 +111,7 @@ def _pattern(form: str) -> re.Pattern[str]:
                               for i, p in enumerate(parts)))
 
 
-def _parse(cell: str, form: str) -> dt.datetime | None:
+def parse(cell: str, form: str) -> dt.datetime | None:
     """The cell as ISO 8601 (``form`` "iso") or as a form of :data:`DATE_FORMATS` (read
     as :func:`datetime.datetime.strptime` does, fractional seconds allowed), or None."""
     try:
@@ -268,9 +140,9 @@ def _parse(cell: str, form: str) -> dt.datetime | None:
 
 def is_date(cell: str) -> bool:
     """Whether one form reads the cell (its zone aside)."""
-    m = _SUFFIX.search(cell)
+    m = SUFFIX.search(cell)
     body = cell if m is None else cell[:m.start()]
-    return any(_parse(body, f) is not None for f in ("iso", *DATE_FORMATS))
+    return any(parse(body, f) is not None for f in ("iso", *DATE_FORMATS))
 
 
 EPOCH_UNITS = (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9))
@@ -327,12 +199,14 @@ def is_time_of_day(cell: str) -> bool:
     return _TIME_OF_DAY.match(cell.strip()) is not None
 
 
-def times_of_day(cells: Sequence[str]) -> np.ndarray | None:
+def times_of_day(cells: Sequence[str], state: tuple[float, float] = (0.0, -np.inf)
+                 ) -> tuple[np.ndarray, tuple[float, float]] | None:
     """Seconds from midnight of the first row's day of cells that are all times of day, a
     day added each time the clock goes back more than 12 hours (it passed midnight); None
-    when a cell is not a time of day."""
+    when a cell is not a time of day. ``state`` (the day added so far and the last time)
+    carries the count from one chunk of a column to the next; the new state is returned."""
     out = np.empty(len(cells))
-    day = 0.0
+    day, last = state
     for i, cell in enumerate(cells):
         m = _TIME_OF_DAY.match(cell.strip())
         if m is None:
@@ -341,8 +215,8 @@ def times_of_day(cells: Sequence[str]) -> np.ndarray | None:
         if m[4]:
             hours = hours % 12 + (12 if m[4].upper() == "PM" else 0)
         t = day + 3600.0 * hours + 60.0 * minutes + secs
-        if i and t < out[i - 1] - 43_200.0:
+        if t < last - 43_200.0:
             day += 86_400.0
             t += 86_400.0
-        out[i] = t
-    return out
+        out[i] = last = t
+    return out, (day, last)

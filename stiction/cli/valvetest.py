@@ -59,10 +59,13 @@ def add_valve_test(sub: Subparsers) -> None:
 
 
 def _read(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, float, list[str]]:
-    table = historian.read_table(args.file)
     y = (args.position, "--position") if args.position is not None else (args.pv or "pv",
                                                                          "--pv")
-    got = historian.read_signals(table, [(args.op, "--op"), y], args.time, args.ts)
+    wanted = [(args.op, "--op"), y]
+    table = historian.read_table(args.file, select=lambda header: historian.needed(
+        header, args.file, wanted, args.time, args.ts))
+    got = historian.read_signals(table, wanted, args.time, args.ts,
+                                 None if args.op_range is None else tuple(args.op_range))
     return got.series[0], got.series[1], got.ts, got.notes
 
 

@@ -9,15 +9,16 @@
 3. In each group the members' evidence, their ranking as its source and the decision
    (:mod:`.judge`, :mod:`.source`, :mod:`.decide`): a loop named its source and which
    evidence named it, or an indicator it enters by from outside, or no source.
-4. Per loop, its role: ``source``, ``follower`` or none (not in any group); a loop in two
-   groups takes its role from the one it carries most strongly. Besides the named source,
-   a member whose own verdict or valve names it and whom the source does not lead is a
-   source of its own (two sticky valves at one period).
+4. Per loop, its role: ``source``, ``follower`` or none (not in any group, or a member
+   called ``stiction`` whose call the group's evidence does not overturn: *kept*); a loop in
+   two groups takes its role from the one it carries most strongly. Besides the named
+   source, a member whose own verdict or valve names it and who does not follow the source
+   is a source of its own (two sticky valves at one period).
 
-:meth:`PlantAssessment.apply` tells one story per loop: a follower is never ``stiction``
-(it becomes ``propagated``: the reason names the source, or the indicator the cycle enters
-by, and the evidence); a source keeps its verdict and size; a loop in no group keeps its
-assessment.
+:meth:`PlantAssessment.apply` tells one story per loop (:mod:`.story`): a follower is never
+``stiction`` (it becomes ``propagated``: the reason names the source, or the indicator the
+cycle enters by, and the evidence); a source keeps its verdict and size; a kept loop keeps
+its verdict, its reason names the group; a loop in no group keeps its assessment.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from .groups import RawGroup, find_groups
 from .judge import Judged, Signals, judge
 from .source import MemberEvidence
 from .spectra import spectra
+from .story import group_reason, kept, propagated
 
 __all__ = ["Group", "LoopRole", "Member", "PlantAssessment", "analyze_plant"]
 
@@ -78,6 +80,15 @@ class Group:
     demoted: Mapping[str, str] = dataclasses.field(default_factory=dict)
     indicators: tuple[IndicatorEvidence, ...] = ()
     unit: str = ""
+    marginal: tuple[Member, ...] = ()
+    """Signals that may carry the cycle but not clearly enough to be members
+    (:mod:`.groups`): listed, no role, their verdicts untouched."""
+    kept: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    """Members called ``stiction`` that are neither a source nor a follower (loop -> why):
+    their call stands (an indicator's lead alone never overturns it), no role."""
+    upstream: str | None = None
+    """An indicator that leads the cycle while a loop is its source, not strongly enough to
+    outweigh that loop's own evidence: the group is also fed from outside, check upstream."""
 
     @property
     def loops(self) -> tuple[str, ...]:
@@ -118,31 +129,19 @@ class PlantAssessment:
 
     def apply(self, assessments: Mapping[str, Assessment]) -> dict[str, Assessment]:
         """The per-loop assessments with the plant view: a follower's ``stiction`` becomes
-        ``propagated`` (no size: it is not its valve's); everything else unchanged."""
+        ``propagated`` (no size: it is not its valve's); a kept loop's reason names the
+        group it shares a cycle with; everything else unchanged."""
         out = dict(assessments)
         for name, a in assessments.items():
             role = self.roles.get(name)
-            if role is None or role.role != "follower" or a.verdict != Verdict.STICTION:
+            if role is None or role.group is None or a.verdict != Verdict.STICTION:
                 continue
-            out[name] = propagated(self.group(role.group or 0), name, a)
+            g = self.group(role.group)
+            if role.role == "follower":
+                out[name] = propagated(g, name, a)
+            elif role.role is None and name in g.kept:
+                out[name] = kept(g, name, a)
         return out
-
-
-def propagated(g: Group, name: str, a: Assessment) -> Assessment:
-    """``a`` (a follower's ``stiction``) as ``propagated``, the reason naming why."""
-    if g.source is not None:
-        where = f"its source is {g.source} (named by {', '.join(g.named_by)})"
-    elif g.entry is not None:
-        where = f"it enters from outside the loops (indicator {g.entry} leads it)"
-    else:
-        where = "no loop analysed here shows evidence of being its source"
-    why = g.demoted.get(name)
-    return dataclasses.replace(
-        a, verdict=Verdict.PROPAGATED, fd=None, fs=None, jump=None, fd_op=None, fs_op=None,
-        cycles_used=0, multi_jump=False,
-        reason=f"propagated: the cycle of {g.period_s:.0f} s is shared by {len(g.loops)} "
-               f"loops and {where}" + (f"; {why}" if why else "")
-               + f"; this loop's own tests said stiction at {a.confidence or 0.0:.2f}")
 
 
 def _series(name: str, value: ArrayLike, n: int | None) -> FloatArray:
@@ -265,27 +264,11 @@ def _group(number: int, period_s: float, j: Judged, unit: str) -> Group:
     d = j.decision
     members = tuple(Member(nm, kind, s) for nm, kind, s in j.members)
     n = sum(1 for m in members if m.kind == "loop")
-    top = j.ranking[0]
-    what = f"the {period_s:.0f} s cycle shared by {n} loops"
-    if d.source is not None:
-        src = next(e for e in j.ranking if e.loop == d.source)
-        reason = f"{d.source} is the source of {what}, named by {', '.join(d.named_by)}: " \
-                 f"{src.note()}"
-        over = [f"{loop}: {why}" for loop, why in d.demoted.items()]
-        if over:
-            reason += "; followers its own tests called stiction: " + "; ".join(over)
-    elif d.outside is not None:
-        ind = next(i for i in j.indicators if i.name == d.outside)
-        nli = "" if ind.nli is None else f", nonlinearity index {ind.nli:.1f}"
-        reason = (f"{what} enters from outside the loops: indicator {d.outside} leads them "
-                  f"(Granger net flow {ind.flow or 0.0:+.2f}{nli}) and no loop's cycle is more "
-                  f"nonlinear (best loop candidate {top.loop}: {top.note()})")
-    else:
-        reason = (f"no loop analysed here shows evidence of being the source of {what} (best "
-                  f"candidate {top.loop}: {top.note()}): its source is not among the loops "
-                  "read, or cannot be told from this data")
+    reason = group_reason(period_s, n, j.ranking, j.indicators, d)
     return Group(number, period_s, members, j.ranking, d.source, reason, d.also, d.named_by,
-                 d.outside, dict(d.demoted), j.indicators, unit)
+                 d.outside, dict(d.demoted), j.indicators, unit,
+                 tuple(Member(nm, kind, s) for nm, kind, s in j.marginal), dict(d.kept),
+                 d.upstream)
 
 
 def _roles(names: list[str], groups: list[Group]) -> dict[str, LoopRole]:
@@ -298,6 +281,8 @@ def _roles(names: list[str], groups: list[Group]) -> dict[str, LoopRole]:
             best[m.name] = m.strength
             if m.name == g.source or m.name in g.also_sources:
                 roles[m.name] = LoopRole(m.name, g.number, "source", m.name)
+            elif m.name in g.kept:
+                roles[m.name] = LoopRole(m.name, g.number, None, g.source)
             else:
                 roles[m.name] = LoopRole(m.name, g.number, "follower", g.source)
     return roles

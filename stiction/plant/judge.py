@@ -24,7 +24,7 @@ from .._assessment import Assessment, Verdict
 from .._validate import FloatArray
 from .decide import Decision, IndicatorEvidence, decide
 from .direction import cycle_band, cycle_bands, granger, phase_lag
-from .groups import BAND, RawGroup
+from .groups import BAND, RawGroup, coherence_at
 from .nonlinearity import nonlinearity
 from .source import MemberEvidence, harmonics, member_evidence, rank
 from .spectra import Spectra
@@ -55,12 +55,13 @@ class Signals:
 @dataclasses.dataclass(frozen=True)
 class Judged:
     """What :func:`judge` found: members (name, kind, strength), the loops' ranking, the
-    indicators' evidence and the decision."""
+    indicators' evidence, the decision and the marginal signals (name, kind, strength)."""
 
     members: tuple[tuple[str, str, float], ...]
     ranking: tuple[MemberEvidence, ...]
     indicators: tuple[IndicatorEvidence, ...]
     decision: Decision
+    marginal: tuple[tuple[str, str, float], ...] = ()
 
 
 class _Links:
@@ -96,13 +97,26 @@ class _Links:
     def flow(self, a: str, b: str) -> float:
         return self.granger(a, b) - self.granger(b, a)
 
+    def coherence(self, a: str, b: str) -> float:
+        """Coherence of ``b``'s cycle with ``a``'s at the group's frequency."""
+        rows = self.sigs.rows
+        return float(coherence_at(rows[self.row[b]][None, :], rows[self.row[a]],
+                                  1.0 / self.period)[0])
 
-def _members(g: RawGroup, sigs: Signals) -> tuple[list[tuple[str, str, float]], dict[str, int]]:
-    """(name, kind, strength) strongest first, and each member's strongest row."""
+
+def _members(g: RawGroup, sigs: Signals, marginal: bool = False
+             ) -> tuple[list[tuple[str, str, float]], dict[str, int]]:
+    """(name, kind, strength) strongest first, and each member's strongest row; of the
+    marginal signals with ``marginal`` (their owners that are no member)."""
     strength: dict[str, float] = {}
     row: dict[str, int] = {}
     kinds: dict[str, str] = {}
-    for i, share in zip(g.signals, g.shares, strict=True):
+    pairs = zip(g.marginal, g.marginal_shares, strict=True) if marginal else \
+        zip(g.signals, g.shares, strict=True)
+    members = {sigs.owner[i] for i in g.signals} if marginal else set()
+    for i, share in pairs:
+        if sigs.owner[i] in members:
+            continue
         nm = sigs.owner[i]
         if share > strength.get(nm, -1.0):
             strength[nm], row[nm] = share, i
@@ -191,6 +205,8 @@ def judge(g: RawGroup, sigs: Signals, *, assessments: Mapping[str, Assessment],
     evidence, indicators = _measured(evidence, indicators, links, row=row, period=g.period)
     ranking = rank(evidence, dict(cascades))
     decision = decide(ranking, indicators, links.flow, links.granger, cascades=cascades,
-                      previous=previous if previous in row else None)
+                      previous=previous if previous in row else None,
+                      coherence=links.coherence, period=g.period)
     ranking = _lags(ranking, decision.source or ranking[0].loop, sigs, row, g.period)
-    return Judged(tuple(members), tuple(ranking), tuple(indicators), decision)
+    return Judged(tuple(members), tuple(ranking), tuple(indicators), decision,
+                  tuple(_members(g, sigs, marginal=True)[0]))

@@ -19,8 +19,10 @@ from ..signal.oscillation import detrend
 
 __all__ = ["MIN_CYCLES", "MIN_PERIOD", "Spectra", "spectra"]
 
-MIN_PERIOD = 4.0
-"""Samples: the fastest cycle a group can have (its fundamental must be resolved)."""
+MIN_PERIOD = 2.5
+"""Samples: the fastest cycle a group can have (its fundamental must be resolved: its band,
+12 % either side, below Nyquist). A historian's 60 s export of a 2.5-3 minute cycle is 2.6-3
+samples a period: with 4 here it formed no group at all (issue 37)."""
 MIN_CYCLES = 3.0
 """Cycles the window must hold for a period to count."""
 

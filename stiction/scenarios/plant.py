@@ -28,8 +28,11 @@ import numpy as np
 from .._errors import ParameterError
 from .._validate import FloatArray
 
-__all__ = ["External", "Indicator", "Link", "PlantLoop", "PlantRecord", "PlantScenario",
-           "simulate_plants"]
+__all__ = ["SIGNALS", "External", "Indicator", "Link", "PlantLoop", "PlantRecord",
+           "PlantScenario", "simulate_plants"]
+
+SIGNALS = ("pv", "process", "valve")
+"""What an indicator of a loop reads (:class:`Indicator`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,6 +55,8 @@ class PlantLoop:
     load_tau: float = 120.0
     valve: bool = True  # False: the outer loop of a cascade (its OP is a setpoint)
     sp_step: float = 0.0  # PV units at 60 s (into the warm-up): starts a stick-slip cycle
+    sensor_tau: float = 0.0  # s: PV measured through a first-order lag (its transmitter)
+    quantum: float = 0.0  # OP and PV written in steps of this (a historian's resolution)
 
     @property
     def sticky(self) -> bool:
@@ -89,14 +94,19 @@ class External:
 
 @dataclasses.dataclass(frozen=True)
 class Indicator:
-    """A measured signal of no loop: ``source`` (a loop's PV or an external load) through
-    ``gain`` and a first-order lag ``tau`` (s), plus white noise ``noise_sd``."""
+    """A measured signal of no loop: ``source`` (a loop, or an external load) through
+    ``gain`` and a first-order lag ``tau`` (s), plus white noise ``noise_sd``, written in
+    steps of ``quantum`` (0: not quantised). Of a loop it reads ``signal``: "pv" its
+    measured PV, "process" its process value before the loop's own sensor lag, "valve" its
+    valve's position (a flow meter right after the valve: % of span as fraction of span)."""
 
     name: str
     source: str
     gain: float = 1.0
     tau: float = 30.0
     noise_sd: float = 0.05
+    signal: str = "pv"
+    quantum: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,6 +193,9 @@ def _vector(scenarios: Sequence[PlantScenario]) -> _Vector:
             if ind.source not in index and ind.source not in ext_index:
                 raise ParameterError("scenarios", f"{sc.name}: indicator {ind.name} reads "
                                      f"{ind.source!r}, neither a loop nor an external")
+            if ind.signal not in SIGNALS:
+                raise ParameterError("scenarios", f"{sc.name}: indicator {ind.name} reads "
+                                     f"signal {ind.signal!r}, not one of {', '.join(SIGNALS)}")
             v.ind.append((p, ind))
             v.ind_loop.append(index.get(ind.source, -1))
             v.ind_ext.append(ext_index.get(ind.source, -1))
@@ -243,6 +256,8 @@ class _Simulation:
         self.fs, self.fd, self.k = col("fs"), col("fd"), col("k")
         self.has_valve, self.noise = col("valve", bool), col("noise_sd")
         self.sp_step = col("sp_step")
+        self.sensor_c, self.sensor = _lag(col("sensor_tau"), ts), np.full(n, 50.0)
+        self.quantum = col("quantum")
         self.load_sd, self.load_c = col("load_sd"), _lag(col("load_tau"), ts)
         self.hist = np.zeros((int(self.delay.max()) + 1, n))
         self.rows = np.arange(n)
@@ -267,6 +282,8 @@ class _Simulation:
         # indicators
         self.i_loop, self.i_ext = np.array(v.ind_loop, np.intp), np.array(v.ind_ext, np.intp)
         self.i_gain = np.array([ind.gain for _, ind in v.ind])
+        self.i_signal = np.array([SIGNALS.index(ind.signal) for _, ind in v.ind], np.intp)
+        self.i_quantum = np.array([ind.quantum for _, ind in v.ind])
         self.i_noise = np.array([ind.noise_sd for _, ind in v.ind])
         self.i_c = _lag(np.array([ind.tau for _, ind in v.ind]), ts)
         self.i_state = np.zeros(len(v.ind))
@@ -274,7 +291,9 @@ class _Simulation:
 
     def step(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         n = self.y.size
-        pv = 50.0 + 100.0 * self.y + self.noise * self.rng.standard_normal(n)
+        process = 50.0 + 100.0 * self.y
+        self.sensor = self.sensor_c * self.sensor + (1.0 - self.sensor_c) * process
+        pv = self.sensor + self.noise * self.rng.standard_normal(n)
         wave = np.sin(2.0 * np.pi * t / self.e_period)
         raw = self.e_amp * np.where(self.e_square, np.sign(wave), wave)
         self.e_state = self.e_c * self.e_state + (1.0 - self.e_c) * raw
@@ -299,7 +318,8 @@ class _Simulation:
         u_d = self.hist[(ptr - self.delay) % self.hist.shape[0], self.rows]
         self.y = self.a * self.y + self.b * u_d
         self.k_step += 1
-        return 100.0 * self.op, pv, 100.0 * vp, self._indicators(pv)
+        return (_steps(100.0 * self.op, self.quantum), _steps(pv, self.quantum), 100.0 * vp,
+                self._indicators(pv, process))
 
     def _control(self, sp: FloatArray, pv: FloatArray) -> FloatArray:
         """Positional PI with conditional integration, OP clamped to the span; He's valve."""
@@ -314,9 +334,16 @@ class _Simulation:
         self.x = np.where(slip, self.x + self.k * (force - np.sign(force) * self.fd), self.x)
         return self.x
 
-    def _indicators(self, pv: FloatArray) -> FloatArray:
+    def _indicators(self, pv: FloatArray, process: FloatArray) -> FloatArray:
         ext = np.append(self.e_state, 0.0)  # index -1: no external
-        raw = np.where(self.i_loop >= 0, (pv[self.i_loop] - 50.0) / 100.0, ext[self.i_ext])
+        of_loop = np.stack(((pv - 50.0) / 100.0, (process - 50.0) / 100.0, self.x - 0.5))
+        raw = np.where(self.i_loop >= 0, of_loop[self.i_signal, self.i_loop], ext[self.i_ext])
         self.i_state = self.i_c * self.i_state + (1.0 - self.i_c) * raw
-        return 50.0 + 100.0 * self.i_gain * self.i_state + \
-            self.i_noise * self.rng.standard_normal(raw.size)
+        return _steps(50.0 + 100.0 * self.i_gain * self.i_state
+                      + self.i_noise * self.rng.standard_normal(raw.size), self.i_quantum)
+
+
+def _steps(x: FloatArray, quantum: FloatArray) -> FloatArray:
+    """``x`` in steps of ``quantum`` where that is above 0."""
+    q = np.where(quantum > 0, quantum, 1.0)
+    return np.asarray(np.where(quantum > 0, np.round(x / q) * q, x))

@@ -201,7 +201,9 @@ def _named() -> dict[str, PlantScenario]:
         "sticky-feeds-two", (fic101, tic201, lic301, pic401, fic102),
         (Link("FIC101", "TIC201", gain=0.8, tau=30.0), Link("FIC101", "LIC301", gain=0.6,
                                                              tau=20.0),
-         Link("TIC201", "PIC401", gain=0.7, tau=60.0)),
+         # a slow path: PIC401 sees TIC201's slow wander, not the 2-3 minute cycle (with a
+         # 60 s lag it carried it at a coherence of 0.3-0.8, about the bar: issue 37)
+         Link("TIC201", "PIC401", gain=0.7, tau=600.0)),
         indicators=(Indicator("TI205", "TIC201", tau=60.0),),
         sources={"FIC101": ("TIC201", "LIC301")},
         description="a sticky flow valve (FIC101, fs 3 %) whose cycle reaches a temperature "

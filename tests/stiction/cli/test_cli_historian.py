@@ -118,8 +118,9 @@ def test_a_column_that_reads_two_ways_is_refused_naming_both(
         tmp_path: Path, capsys: pytest.CaptureFixture[str],
         loop: tuple[np.ndarray, ...]) -> None:
     """Issue 32 item 1: every number of the file like `1,118` or `50.125` (OP with three
-    decimals): no cell tells which mark is the decimal one: exit 2 with both readings, and
-    --decimal settles it, to the clean export's answer."""
+    decimals): no cell tells which mark is the decimal one. Issue 38 item 5: OP's range does
+    (50.125 lies inside 0-100, 50125 far outside): read as the clean export with --decimal .,
+    said so; where the range given holds both readings, exit 2 with both."""
     t, op, pv = loop
     op = np.round(op, 3)
     pv = np.round(100.0 * pv)
@@ -127,14 +128,21 @@ def test_a_column_that_reads_two_ways_is_refused_naming_both(
     rows = [(f"2024-03-01 06:{int(a) // 60:02d}:{int(a) % 60:02d}", f"{b:.3f}", f"{c:,.0f}")
             for a, b, c in zip(t, op, pv, strict=True)]
     path = _write(tmp_path / "export.txt", ("Time", "op", "pv"), rows[:3000], "\t")
-    err = _error(capsys, path)
-    assert f"column 'op': {rows[0][1]!r} (line 2) reads as {op[0]:.10g} with '.' the decimal " \
-        f"mark or as {op[0] * 1000:.10g} with '.' grouping thousands, and no number in the " \
-        "file tells which; give --decimal . " in err
     clean = [(f"{a:g}", f"{b:.3f}", f"{c:.0f}") for a, b, c in zip(t, op, pv, strict=True)]
     want = _run(capsys, _write(tmp_path / "clean.csv", ("t", "op", "pv"), clean, ","))
     assert not any(w.startswith("column") for w in want["warnings"])  # a CSV: '.' decimal
+    got = _run(capsys, path)
+    _same(got, want)
     _same(_run(capsys, path, "--decimal", "."), want)
+    said = " ".join(got["warnings"])
+    assert f"column 'op': {rows[0][1]!r} read as {op[0]:.10g}: read with '.' grouping " \
+        f"thousands it would be {op[0] * 1000:.10g}, outside the OP range 0-100" in said
+    assert f"column 'pv': {rows[0][2]!r} read as {pv[0]:.10g}: '.' is the decimal mark of " \
+        "this export (column 'op' reads inside its OP range 0-100 only so)" in said
+    err = _error(capsys, path, "--op-range", "0", "100000")
+    assert f"column 'op': {rows[0][1]!r} (line 2) reads as {op[0]:.10g} with '.' the decimal " \
+        f"mark or as {op[0] * 1000:.10g} with '.' grouping thousands, and no number in the " \
+        "file tells which; give --decimal . " in err
 
 
 def test_the_pv_column_alone_names_its_two_readings(tmp_path: Path,

@@ -3,10 +3,14 @@ and `stiction simulate --plant` writing one."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import functools
+import io
 import json
+import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 from plant_fixtures import plant_records, write_wide_export
@@ -26,10 +30,11 @@ def test_groups_sources_and_every_loop_in_text(tmp_path: Path,
     assert main(["plant", str(_export(tmp_path)), "--integrating", "LIC301"]) == 0
     out = capsys.readouterr().out
     lines = out.splitlines()
-    # the count agrees with the members listed: loops and indicators apart
-    (h,) = [k for k, ln in enumerate(lines) if ln.startswith("group 1:")]
+    # the count agrees with the members listed: loops and indicators apart (the cycle's
+    # period is 150-215 s over 40 realisations of the plant: machines differ in which)
+    (h,) = [k for k, ln in enumerate(lines) if ln.startswith("group ") and "FIC101" in ln]
     head, loops = lines[h], lines[h + 1]
-    assert head.startswith("group 1: period 1") and ", 3 loops and 1 indicator, " in head
+    assert re.match(r"group \d: period (1\d\d|2[0-4]\d) s, 3 loops and 1 indicator, ", head)
     assert "source FIC101 (named by " in head and loops.startswith("  loops: ")
     assert sorted(x.split()[0] for x in loops[9:].split(", ")) == ["FIC101", "LIC301",
                                                                     "TIC201"]
@@ -53,7 +58,7 @@ def test_json_has_groups_evidence_and_loops(tmp_path: Path,
     assert main(["plant", str(_export(tmp_path)), "--integrating", "LIC301", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     (g,) = [g for g in data["groups"] if "FIC101" in g["loops"]]
-    assert 140 < g["period_s"] < 200 and g["source"] == "FIC101"
+    assert 120 < g["period_s"] < 250 and g["source"] == "FIC101"
     assert "direction" in g["named_by"] and g["entry"] is None
     assert g["indicators"] == ["TI205"] and len(g["loops"]) == 3
     top = g["source_ranking"][0]
@@ -84,7 +89,7 @@ def test_the_spectral_map_marks_the_groups_and_has_a_colour_scale(
     assert main(["plant", str(_export(tmp_path)), "--plot", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert drawn[0][0] == "share of the loop's power (log10)"
-    assert "group 1: source FIC101" in drawn[0]
+    assert any(re.fullmatch(r"group \d: source FIC101", x) for x in drawn[0])
 
 
 @functools.cache
@@ -158,6 +163,13 @@ def test_simulate_writes_a_plant_export_that_plant_reads(
     (["FIC1.OP", "FIC1.PV", "TI9"], {"FIC1": (0, 1)}, {"TI9": 2}),
     (["fic1_op", "FIC1_PV", "fic1.sp"], {"fic1": (0, 1)}, {}),
     (["A.MV", "A.PV", "B.OUT", "B pv", "C.OP"], {"A": (0, 1), "B": (2, 3)}, {"C.OP": 4}),
+    # historians' tag paths (issue 35): Ignition's provider left out of the name, a colon,
+    # DeltaV's function block and .CV, a provider kept where two loops would be one
+    (["[default]U2/FIC101/OP", "[default]U2/FIC101/PV", "[default]U2/TI205"],
+     {"U2/FIC101": (0, 1)}, {"U2/TI205": 2}),
+    (["U2:FIC1:PV", "U2:FIC1:OP"], {"U2:FIC1": (1, 0)}, {}),
+    (["FIC1/PID1/OUT.CV", "FIC1/PID1/PV.CV", "FIC1/PID1/SP.CV"], {"FIC1/PID1": (0, 1)}, {}),
+    (["[a]X/OP", "[a]X/PV", "[b]X/OP", "[b]X/PV"], {"[a]X": (0, 1), "[b]X": (2, 3)}, {}),
 ])
 def test_loops_are_found_from_column_pairs(header: list[str], loops: dict[str, tuple[int, int]],
                                            indicators: dict[str, int]) -> None:
@@ -204,3 +216,97 @@ def test_an_export_newest_first_reads_as_in_time_order(
     assert len(said) == 1 and said[0].startswith("rows newest first (column 'Timestamp' from")
     assert newest_first == in_order
     assert in_order["groups"]  # a real answer: the sticky valve's group
+
+
+def test_an_ignition_export_reads_its_tag_paths_as_loops(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 35: columns named as Ignition exports them ([default]U2/FIC101/OP) were all
+    indicators; they are the loops they name, and the answer is the plain export's."""
+    rec = plant_records()["sticky-feeds-two"]
+    names = {f"{t}.{k}": f"[default]U2/{t}/{k}" for t in rec.op for k in ("OP", "PV")}
+    path = write_wide_export(tmp_path / "ignition.csv", rec, names=names)
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join([lines[0].replace(";TI205", ";[default]U2/TI205"),
+                               *lines[1:]]) + "\n")
+    assert main(["plant", str(path), "--integrating", "LIC301", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert main(["plant", str(_export(tmp_path)), "--integrating", "LIC301", "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert [x["loop"] for x in data["loops"]] == [f"U2/{x['loop']}" for x in plain["loops"]]
+    (g,) = [g for g in data["groups"] if "U2/FIC101" in g["loops"]]
+    (p,) = [g for g in plain["groups"] if "FIC101" in g["loops"]]
+    assert g["source"] == "U2/FIC101" and g["entry"] is None
+    assert g["loops"] == [f"U2/{x}" for x in p["loops"]] and g["indicators"] == ["U2/TI205"]
+    assert {x["loop"]: x["verdict"] for x in data["loops"]} == \
+        {f"U2/{x['loop']}": x["verdict"] for x in plain["loops"]}
+
+
+def test_a_column_named_like_a_loops_signal_without_its_partner_is_warned_of(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _export(tmp_path)
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join([lines[0] + ";[default]U2/FIC9/OP",
+                               *(ln + ";1,5" for ln in lines[1:])]) + "\n")
+    assert main(["plant", str(path), "--integrating", "LIC301", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert "column '[default]U2/FIC9/OP' is named like a loop's OP but the file has no PV " \
+           "column of '[default]U2/FIC9': read as an indicator" in data["warnings"]
+
+
+@functools.cache
+def _historian_export(tmp: Path, ts: int, seed: int) -> Path:
+    out = tmp / f"sfw-{ts}-{seed}.csv"
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["simulate", "--plant", "sticky-feeds-two", "--ts", str(ts), "--duration",
+                     "14400", "--seed", str(seed), "-o", str(out)]) == 0
+    return out
+
+
+@pytest.mark.parametrize("seed", range(1, 6))
+@pytest.mark.parametrize("ts", [30, 60])
+def test_a_historian_export_finds_the_group_and_tells_one_story(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+        ts: int, seed: int) -> None:
+    """Issue 37: sticky-feeds-two exported at 30 and 60 s (a cycle of 5 and 2.7 samples).
+    At 60 s no group was found (the cycle under 4 samples a period); at 30 s TIC201 was a
+    second source in the loop table and on the plot (two rings) while the JSON named
+    FIC101. The group is found, and the JSON, the text's loop table and the plot name the
+    same sources; no follower is stiction. (Which loop is named at these samplings depends
+    on the per-loop verdicts too: bench/_caselist/plant.py counts FIC101 named over
+    seeds 1-5.)"""
+    path = _historian_export(tmp_path, ts, seed)
+    rings = _rings(monkeypatch)
+    assert main(["plant", str(path), "--integrating", "LIC301", "--json", "--plot",
+                 str(tmp_path / "map.png")]) == 0
+    data = json.loads(capsys.readouterr().out)
+    loops = {x["loop"]: x for x in data["loops"]}
+    (g,) = [g for g in data["groups"] if g["group"] == loops["FIC101"]["group"]]
+    assert {"FIC101", "TIC201", "LIC301"} <= set(g["loops"]) and 140 < g["period_s"] < 250
+    named = {n for h in data["groups"] for n in (h["source"], *h["also_sources"]) if n}
+    sources = sorted(n for n, x in loops.items() if x["role"] == "source")
+    assert set(sources) <= named and set(rings) == named  # the plot's source rings
+    assert not [n for n, x in loops.items() if x["role"] == "follower"
+                and x["verdict"] == "stiction"]
+    assert main(["plant", str(path), "--integrating", "LIC301"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    (head,) = [k for k, ln in enumerate(lines) if ln.startswith("loop ")]
+    roles = {ln.split()[0]: ln.split()[3:6] for ln in lines[head + 1:head + 6]}
+    assert sorted(n for n, r in roles.items() if r[:1] == ["group"] and r[2] == "source") \
+        == sources
+
+
+def _rings(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The loops the spectral map will ring as sources (red circles), as drawn."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.axes import Axes  # noqa: PLC0415
+
+    rings: list[str] = []
+    scatter = Axes.scatter
+
+    def spy(self: Axes, x: Any, y: Any, *a: Any, **k: Any) -> Any:
+        if k.get("edgecolors") == "r":
+            rings.extend(self.get_yticklabels()[int(v)].get_text() for v in y)
+        return scatter(self, x, y, *a, **k)
+
+    monkeypatch.setattr(Axes, "scatter", spy)
+    return rings

@@ -38,7 +38,7 @@ def test_a_sticky_valve_and_its_followers_form_one_group_with_the_valve_as_sourc
     assert "TI205" in {m.name for m in g.members if m.kind == "indicator"}
     assert g.source == "FIC101" and g.ranking[0].loop == "FIC101"
     assert "direction" in g.named_by  # it leads TIC201 and LIC301 (Granger)
-    assert 140 < g.period_s < 180
+    assert 120 < g.period_s < 250  # 150-215 s over 40 realisations of the plant
     # its own window: at least undetermined with the valve evidence for (the named source)
     assert before["FIC101"].verdict in (Verdict.STICTION, Verdict.UNDETERMINED)
     assert view.roles["FIC101"].role == "source"
@@ -60,7 +60,7 @@ def test_a_follower_called_stiction_becomes_propagated_and_the_source_keeps_its_
     assert "its source is FIC101" in t.reason and "cycle of 1" in t.reason
     assert t.evidence == sized.evidence  # every test's value and vote kept
     assert after["FIC101"] == before["FIC101"]  # the source keeps its verdict and size
-    alone = [n for n, r in view.roles.items() if r.role is None]
+    alone = [n for n, r in view.roles.items() if r.group is None]
     assert all(after[n] == before[n] for n in alone)  # (tested apart below, too)
 
 
@@ -94,35 +94,50 @@ def _header_read_fast() -> tuple[PlantRecord, dict[str, Assessment]]:
 
 def test_an_indicator_that_leads_names_where_the_cycle_enters_from_outside() -> None:
     """The header's pressure read at once leads every loop and its square cycle is the most
-    nonlinear: the cycle enters from outside, by it. A loop the per-loop tests call
-    stiction whose own cycle is linear follows; one whose cycle is nonlinear keeps its call
-    (an indicator right after a sticky valve leads it too)."""
+    nonlinear by far (index 4.5 against the loops' 1.3 at most): the cycle enters from
+    outside, by it, and a loop the per-loop tests call stiction at 0.88 with a linear cycle
+    follows. Called at 0.95, its call stands (issue 37: an indicator never overturns a
+    confident call): it is the source, the group also fed from outside."""
     rec, before = _header_read_fast()
-    called = {**before, "FIC102": dataclasses.replace(before["FIC102"],
-                                                      verdict=Verdict.STICTION,
-                                                      confidence=0.9)}
     loops = {n: (rec.op[n], rec.pv[n]) for n in rec.op}
-    view = analyze_plant(loops, ts=rec.ts, indicators=rec.indicators, assessments=called,
-                         processes=_processes(rec))
-    (g,) = [g for g in view.groups if "TIC201" in g.loops]
-    assert g.source is None and g.outside and g.entry == "PI_STEAM"
-    assert g.named_by == ("indicator",)
-    assert "enters from outside the loops: indicator PI_STEAM leads them" in g.reason
-    after = view.apply(called)
-    for name in ("TIC201", "PIC401", "FIC102"):
-        assert view.roles[name].role == "follower"
-    assert after["FIC102"].verdict == Verdict.PROPAGATED
-    assert "indicator PI_STEAM leads its cycle" in after["FIC102"].reason
-    assert "own tests said stiction at 0.90" in after["FIC102"].reason
+    for conf in (0.88, 0.95):
+        called = {**before, "FIC102": dataclasses.replace(before["FIC102"],
+                                                          verdict=Verdict.STICTION,
+                                                          confidence=conf)}
+        view = analyze_plant(loops, ts=rec.ts, indicators=rec.indicators, assessments=called,
+                             processes=_processes(rec))
+        (g,) = [g for g in view.groups if "TIC201" in g.loops]
+        after = view.apply(called)
+        for name in ("TIC201", "PIC401"):
+            assert view.roles[name].role == "follower"
+        f = after["FIC102"]
+        if conf < 0.9:
+            assert g.source is None and g.outside and g.entry == "PI_STEAM"
+            assert g.named_by == ("indicator",)
+            assert "enters from outside the loops: indicator PI_STEAM leads them" in g.reason
+            assert view.roles["FIC102"].role == "follower"
+            assert f.verdict == Verdict.PROPAGATED
+            assert "indicator PI_STEAM leads its cycle" in f.reason
+            assert "own tests said stiction at 0.88" in f.reason
+        else:
+            assert g.source == "FIC102" and g.entry is None and g.upstream == "PI_STEAM"
+            assert g.named_by[0] == "own verdict"
+            assert "also fed from outside? indicator PI_STEAM leads the cycle" in g.reason
+            assert view.roles["FIC102"].role == "source" and f == called["FIC102"]
+    # the square reaches TIC201 nonlinear: called too, as confidently, FIC102's evidence is
+    # no stronger than its own (TIC201's cycle is the more nonlinear): both calls stand, each
+    # loop a source of its own
     nonlinear = max((e for e in g.ranking if e.nli is not None), key=lambda e: e.nli or 0.0)
-    assert (nonlinear.nli or 0.0) > 1.0  # the square reaches a loop nonlinear
-    called[nonlinear.loop] = dataclasses.replace(before[nonlinear.loop],
-                                                 verdict=Verdict.STICTION, confidence=0.9)
+    assert nonlinear.loop == "TIC201" and (nonlinear.nli or 0.0) > 1.0
+    called = {**before, **{n: dataclasses.replace(before[n], verdict=Verdict.STICTION,
+                                                  confidence=0.9) for n in ("FIC102", "TIC201")}}
     view = analyze_plant(loops, ts=rec.ts, indicators=rec.indicators, assessments=called,
                          processes=_processes(rec))
     (g,) = [g for g in view.groups if "TIC201" in g.loops]
-    assert g.entry is None and "own verdict" in g.named_by
-    assert g.source in ("FIC102", nonlinear.loop)  # a call stands: one of the two called
+    assert g.source == "FIC102" and g.also_sources == ("TIC201",) and not g.demoted
+    assert view.roles["TIC201"].role == "source"
+    after = view.apply(called)
+    assert after["TIC201"] == called["TIC201"] and after["FIC102"] == called["FIC102"]
 
 
 def test_a_loop_called_stiction_in_a_group_is_its_source() -> None:
