@@ -28,7 +28,8 @@ to and the windows the network cannot read:
      plant records (a good valve under a sine load, which the network reads at 0.4, is not
      left undetermined);
    - ``net < band_low``: ``no_stiction`` (at most 5 % of such simulated windows were sticky),
-     or ``undetermined`` where the decision calls stiction (the two disagree).
+     or ``undetermined`` where the decision says stiction (``decision >= stiction_at``,
+     backed by a test or not: the two disagree).
 
 2. **The network could not read it** (a cycle of fewer than 8 samples): the decision as
    before, ``stiction`` from ``stiction_at`` when a test made for such a cycle backs it,
@@ -111,8 +112,8 @@ def call(decision: float, net: float | None, votes: Mapping[str, int], *, too_fa
         if decision <= at.no_stiction_at and _tests_say_not(votes):
             return Call(Verdict.NO_STICTION, net)
         return Call(Verdict.UNDETERMINED, net, unbacked=unbacked)
-    if decides:
-        return Call(Verdict.UNDETERMINED, net, against=True)
+    if decision >= at.stiction_at:  # the decision says stiction, the network not
+        return Call(Verdict.UNDETERMINED, net, unbacked=unbacked, against=unbacked is None)
     return Call(Verdict.NO_STICTION, net)
 
 

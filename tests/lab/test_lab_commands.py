@@ -13,7 +13,7 @@ from lab import commands
 def test_an_unknown_command_prints_the_usage(argv: list[str], capsys) -> None:
     assert commands.main(argv) == 2
     err = capsys.readouterr().err
-    assert "usage: python -m lab {corpus | train [--write] | calibrate [--write] | " \
+    assert "usage: python -m lab {corpus | train [--write] | decide | calibrate [--write] | " \
         "shape-corpus [--chunks N] | shape [--search | --write]}" in err
     assert all(name in err for name in commands.COMMANDS)
 
