@@ -97,6 +97,8 @@ it was used (its travel decided the verdict, or agreed with a calm loop's); it c
 position (moves against OP, another scale, a lag, held while PV moved: OP and PV decided,
 and the reason says why)."""
 
+SITE_NONE = "none"
+""":attr:`Assessment.site` of a window scored alone, at the simulation's share of sticky valves."""
 SPAN = "% of span"
 OP_UNITS = "OP units"
 
@@ -156,6 +158,11 @@ class Assessment:
     ``position_use`` is None where no position was given, else one of
     :data:`POSITION_USES` (the evidence ``travel`` says why); :meth:`to_dict` leaves it out
     while it is None, so that a reader older than the field reads what has no position.
+    ``site`` says how the OP-PV shape network's probability was read (issue 36): ``"none"``
+    (one window alone, at the simulation's share of sticky valves: "scored without site
+    adaptation") or ``"adapted"`` (moved to the share of sticky valves the windows of a
+    site imply, ``site_share``: :mod:`stiction.diagnosis.adapt`); :meth:`to_dict` leaves
+    both out while the site is ``"none"``.
     """
 
     verdict: Verdict
@@ -176,6 +183,8 @@ class Assessment:
     band: float | None = None
     band_op: float | None = None
     position_use: str | None = None
+    site: str = SITE_NONE
+    site_share: float | None = None
 
     def sizes(self, k: float = DEFAULT_K) -> Sizes | None:
         """The size in one unit (:class:`Sizes`): percent of span when the OP range was
@@ -198,10 +207,13 @@ class Assessment:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping with exactly the field names of the dataclass (``position_use``
-        only where a position was given)."""
+        only where a position was given, ``site`` and ``site_share`` only where the site was
+        adapted)."""
         out = dataclasses.asdict(self)
         if self.position_use is None:
             del out["position_use"]
+        if self.site == SITE_NONE and self.site_share is None:  # as a reader before them
+            del out["site"], out["site_share"]
         out["verdict"] = str(self.verdict)
         out["warnings"] = list(self.warnings)
         out["evidence"] = [e.to_dict() for e in self.evidence]

@@ -43,6 +43,8 @@ labels      windows, sources                  (each window's cause class; the co
 features    labels and everything below it    (the rows the decision reads)
 training    features and everything below it  (the fit, the folds, the thresholds, reports)
 export      training and everything below it  (model.json, weights.py)
+shape       the records of sources            (the shape network: its corpus, training,
+                                               research table and export)
 commands    all of the above                  (python -m lab NAME; __main__ runs them)
 ==========  ===============================================================================
 
@@ -99,8 +101,8 @@ STICTION_BELOW["cli"] = set(STICTION_BELOW) - {"cli"}
 STICTION_BELOW[""] = STICTION_BELOW["cli"]  # stiction/__init__: the public API
 PLUGIN_ROOMS = ("inputs", "outputs")  # one folder per protocol / sink, plus base.py
 LAB_GROUND = {"_types", "_cache"}
-LAB_ROOMS = ("sources", "windows", "labels", "features", "training", "export", "commands",
-             "__main__")
+LAB_ROOMS = ("sources", "windows", "labels", "features", "training", "export", "shape",
+             "commands", "__main__")
 MAY_IMPORT = {"stiction": {"stiction"}, "gateway": {"gateway", "stiction"},
               "plcsim": {"plcsim", "gateway", "stiction"}, "lab": {"lab", "stiction"},
               "bench": set(PACKAGES)}

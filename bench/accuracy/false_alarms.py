@@ -50,7 +50,8 @@ def sweep() -> dict[str, dict[str, collections.Counter[str]]]:
                             windows["all"] += 1
                             if flags[-1]:
                                 windows["stiction"] += 1
-                                routes["+".join(e.test for e in a.evidence if e.vote > 0)] += 1
+                                routes["+".join(e.test for e in a.evidence if e.vote > 0
+                                                and e.test != "decision")] += 1  # no test
                         runs["all"] += 1
                         if any(x and y for x, y in itertools.pairwise(flags)):
                             runs["two in a row"] += 1

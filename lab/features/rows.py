@@ -14,7 +14,10 @@ from pathlib import Path
 import numpy as np
 
 import stiction
+from stiction import Verdict
+from stiction.diagnosis import network
 from stiction.diagnosis.analyze import analyze_details
+from stiction.diagnosis.enough import movement_scales, too_short
 from stiction.diagnosis.features import features
 
 from .. import _cache
@@ -35,6 +38,8 @@ class Row:
     x: np.ndarray | None  # None: the gates decided (``verdict`` says how)
     verdict: str  # today's verdict, the "before"
     confidence: float | None
+    shape: float = float("nan")  # the shape network's logit (NaN: not read)
+    withdrawn: bool = False  # too short for a call of stiction (stiction.diagnosis.enough)
 
 
 def code_key() -> str:
@@ -66,13 +71,19 @@ def rows(windows: Sequence[Window]) -> list[Row]:
     out = []
     for w in windows:
         d = analyze_details(w.op, w.pv, ts=w.ts, process=w.process)
-        x = None
+        x, logit, withdrawn = None, float("nan"), False
         if d.findings is not None and d.cycle is not None and d.op is not None and \
                 d.pv is not None:
             x = features(d.findings.evidence, d.findings.results, d.cycle, op=d.op, pv=d.pv,
                          integrating=w.process == "integrating")
+            net = d.findings.results.get(network.NAME)
+            if isinstance(net, network.Reading) and net.logit is not None:
+                logit = net.logit
+            short = too_short(d.op.size, scales=None if d.cycle.cycling else
+                              movement_scales(d.op, d.pv))
+            withdrawn = short is not None and short.withdraws(Verdict.STICTION)
         out.append(Row(w.source, w.run, w.cause, w.cause_class, w.view, x,
-                       str(d.assessment.verdict), d.assessment.confidence))
+                       str(d.assessment.verdict), d.assessment.confidence, logit, withdrawn))
     _cache.dump([dataclasses.astuple(r) for r in out], path)
     return out
 

@@ -3,11 +3,12 @@
 The path of a window: the data-quality gates (:mod:`.quality`, :mod:`.responding`); the
 cycle (:func:`stiction.signal.cycle.find_cycle`); whether the window holds enough of its loop
 to judge (:mod:`.enough`); every registered detector (:mod:`.evidence`,
-:mod:`stiction.detectors.registry`); one confidence from what they saw (:mod:`.features`, the
-learned :mod:`.model`); a call of stiction only where a test says stiction (the evidence gate,
-:mod:`.gate`); when it says stiction, the size (:mod:`stiction.quantify.route`);
-the reason in words (:mod:`.reasons`). A window found calm in which a live PV held within
-its noise while OP ramped on is a valve not responding
+:mod:`stiction.detectors.registry`) and the OP-PV shape network (:mod:`.network`); one
+confidence from what the tests saw (:mod:`.features`, the learned :mod:`.model`); the call
+from the network and the decision (:mod:`.call`), stiction only where a test or the network
+says so (the evidence gate, :mod:`.gate`); when it says stiction, the size
+(:mod:`stiction.quantify.route`); the reason in words (:mod:`.reasons`). A window found calm
+in which a live PV held within its noise while OP ramped on is a valve not responding
 (:func:`.responding.held_while_op_ran`); one too short to judge is ``bad_data``, saying what
 would be enough.
 """
@@ -15,15 +16,12 @@ would be enough.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from typing import Any
 
-import numpy as np
 from numpy.typing import ArrayLike
 
 from .._assessment import Assessment, Verdict
-from .._errors import ParameterError
 from .._validate import FloatArray
 from ..detectors.ellipse import EllipseFit
 from ..detectors.hammerstein import HammersteinFit
@@ -31,21 +29,21 @@ from ..quantify.hewang import Quantification, quantify
 from ..quantify.route import FittedValve, limit_cycle, size_valve
 from ..quantify.travel import Travel, measure_travel
 from ..signal.cycle import Cycle, find_cycle
-from . import gate
 from . import model as learned
+from . import network
+from .adapt import ADAPTED, Site, at_site, at_site_evidence
+from .arguments import PROCESSES, along, validate
+from .call import call, shipped
 from .enough import SEE_CYCLES, movement_scales, too_short
 from .evidence import Findings, gather
 from .features import features
 from .quality import check_quality
-from .reasons import not_stiction, size_text, stiction_head, too_fast_to_see, unbacked_text
+from .reasons import decision_evidence, not_called, size_text, stiction_head, too_fast_to_see
 from .responding import held_while_op_ran
 from .setpoint import SetpointCut, steady_stretch
 from .travel import apply_travel, frozen_reading
 
 __all__ = ["PROCESSES", "Details", "analyze", "analyze_details"]
-
-PROCESSES = ("self-regulating", "integrating")
-
 
 @dataclasses.dataclass(frozen=True)
 class Details:
@@ -62,68 +60,6 @@ class Details:
     travel: Travel | None = None  # what the valve's position said, where it was given
 
 
-def _series(name: str, value: ArrayLike) -> FloatArray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(name, "must be a sequence of numbers") from exc
-    if arr.ndim != 1:
-        raise ParameterError(name, f"must be one-dimensional, has {arr.ndim} dimensions")
-    return arr
-
-
-def _scalar(name: str, value: Any, *, positive: bool = False, non_negative: bool = False,
-            non_zero: bool = False) -> float:
-    if isinstance(value, bool):
-        raise ParameterError(name, f"must be a number, was {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(name, f"must be a number, was {value!r}") from exc
-    if not math.isfinite(v):
-        raise ParameterError(name, f"must be finite, was {value!r}")
-    if positive and v <= 0:
-        raise ParameterError(name, f"must be > 0, was {value!r}")
-    if non_negative and v < 0:
-        raise ParameterError(name, f"must be >= 0, was {value!r}")
-    if non_zero and v == 0:
-        raise ParameterError(name, "must not be 0")
-    return v
-
-
-def _validate(
-    op: ArrayLike, pv: ArrayLike, *, ts: Any, kp: Any, delay: Any, process: Any,
-    op_range: Any, k: Any,
-) -> tuple[FloatArray, FloatArray, float, float | None, float, float | None, float]:
-    op_a = _series("op", op)
-    pv_a = _series("pv", pv)
-    if op_a.size != pv_a.size:
-        raise ParameterError("pv", f"must have the same length as op ({pv_a.size} != "
-                                   f"{op_a.size})")
-    ts_ = _scalar("ts", ts, positive=True)
-    kp_ = None if kp is None else _scalar("kp", kp, non_zero=True)
-    delay_ = _scalar("delay", delay, non_negative=True)
-    if process not in PROCESSES:
-        raise ParameterError("process", f"must be one of {', '.join(PROCESSES)}; was "
-                                        f"{process!r}")
-    span: float | None = None
-    if op_range is not None:
-        try:
-            lo, hi = op_range
-        except (TypeError, ValueError) as exc:
-            raise ParameterError("op_range", f"must be a pair (lo, hi), was {op_range!r}"
-                                 ) from exc
-        lo_ = _scalar("op_range", lo)
-        hi_ = _scalar("op_range", hi)
-        if hi_ <= lo_:
-            raise ParameterError("op_range", f"must have lo < hi, was {op_range!r}")
-        span = hi_ - lo_
-    k_ = _scalar("k", k)
-    if not 1.0 <= k_ <= 2.0:
-        raise ParameterError("k", f"must lie in [1, 2], was {k!r}")
-    return op_a, pv_a, ts_, kp_, delay_, span, k_
-
-
 def analyze(
     op: ArrayLike,
     pv: ArrayLike,
@@ -136,6 +72,7 @@ def analyze(
     k: float = 1.99,
     position: ArrayLike | None = None,
     sp: ArrayLike | None = None,
+    site: Site | None = None,
 ) -> Assessment:
     """Decide whether one window of a loop oscillates, whether stiction causes it, and size it.
 
@@ -178,6 +115,12 @@ def analyze(
         on its longest stretch between the steps, never across one (a setpoint step is not
         the valve's jump: :mod:`.setpoint`), and the reason says which samples; a setpoint
         that moves continuously (a cascade's) leaves the window whole, with a warning.
+    site
+        The share of sticky valves at the loop's site (:class:`stiction.diagnosis.adapt.Site`:
+        :func:`~stiction.diagnosis.adapt.site_of` a batch's first assessments, a gateway's
+        previous round); optional. The OP-PV shape network's probability is moved to it
+        before the call (``site`` ``"adapted"`` in the assessment); without it the window
+        is scored at the simulation's share (``site`` ``"none"``).
 
     Returns
     -------
@@ -193,7 +136,8 @@ def analyze(
         An argument is unusable (non-numeric data, unequal lengths, ts <= 0, ...).
     """
     return analyze_details(op, pv, ts=ts, kp=kp, delay=delay, process=process,
-                           op_range=op_range, k=k, position=position, sp=sp).assessment
+                           op_range=op_range, k=k, position=position, sp=sp,
+                           site=site).assessment
 
 
 def analyze_details(
@@ -209,38 +153,32 @@ def analyze_details(
     force_quantify: bool = False,
     position: ArrayLike | None = None,
     sp: ArrayLike | None = None,
+    site: Site | None = None,
 ) -> Details:
     """:func:`analyze` with its intermediate results. ``force_quantify`` runs the
     quantification even when detection does not say stiction (as the paper's Table 6 does
     for every row); the verdict is unchanged and the sizes are then left out of the
-    assessment but available in ``Details.quantification``. ``position``, ``sp``: as for
-    :func:`analyze` (``Details.start`` is then the judged stretch's first sample)."""
-    op_a, pv_a, ts_, kp_, delay_, span, k_ = _validate(
+    assessment but available in ``Details.quantification``. ``position``, ``sp``, ``site``:
+    as for :func:`analyze` (``Details.start`` is then the judged stretch's first sample)."""
+    op_a, pv_a, ts_, kp_, delay_, span, k_ = validate(
         op, pv, ts=ts, kp=kp, delay=delay, process=process, op_range=op_range, k=k)
-    pos_a = _along("position", position, op_a.size)
-    sp_a = _along("sp", sp, op_a.size)
+    pos_a = along("position", position, op_a.size)
+    sp_a = along("sp", sp, op_a.size)
     cut = None if sp_a is None else steady_stretch(sp_a, pv_a)
     if cut is not None and cut.cuts:
         op_a, pv_a = op_a[cut.start:cut.stop], pv_a[cut.start:cut.stop]
         pos_a = None if pos_a is None else pos_a[cut.start:cut.stop]
     d = _judged(op_a, pv_a, pos_a, ts=ts_, kp=kp_, delay=delay_, span=span, k=k_,
-                integrating=process == "integrating", force_quantify=force_quantify)
+                integrating=process == "integrating", force_quantify=force_quantify,
+                site=site)
     return d if cut is None else _cut_said(d, cut, ts_)
-
-
-def _along(name: str, value: ArrayLike | None, n: int) -> FloatArray | None:
-    """An optional series sampled with OP (``n`` samples), validated."""
-    arr = None if value is None else _series(name, value)
-    if arr is not None and arr.size != n:
-        raise ParameterError(name, f"must have the same length as op ({arr.size} != {n})")
-    return arr
 
 
 def _cut_said(d: Details, cut: SetpointCut, ts: float) -> Details:
     """``d`` of the stretch ``cut`` chose, its reason (or, for a moving setpoint, its
     warnings) saying so."""
     a = d.assessment
-    if not cut.cuts:
+    if not cut.cuts and not cut.short:
         a = dataclasses.replace(a, warnings=(*a.warnings, cut.sentence(ts)))
         return dataclasses.replace(d, assessment=a)
     said = cut.sentence(ts)
@@ -251,11 +189,11 @@ def _cut_said(d: Details, cut: SetpointCut, ts: float) -> Details:
 
 def _judged(op_a: FloatArray, pv_a: FloatArray, pos_a: FloatArray | None, *, ts: float,
             kp: float | None, delay: float, span: float | None, k: float, integrating: bool,
-            force_quantify: bool) -> Details:
+            force_quantify: bool, site: Site | None) -> Details:
     """The diagnosis of one stretch: OP and PV's, then the valve's travel where a position
     was given."""
     d = _op_pv(op_a, pv_a, ts=ts, kp=kp, delay=delay, span=span, k=k,
-               integrating=integrating, force_quantify=force_quantify)
+               integrating=integrating, force_quantify=force_quantify, site=site)
     if pos_a is None:
         return d
     travel = frozen_reading(measure_travel(op_a, pos_a, k=k, span=span), pv_a)
@@ -264,7 +202,8 @@ def _judged(op_a: FloatArray, pv_a: FloatArray, pos_a: FloatArray | None, *, ts:
 
 
 def _op_pv(op_a: FloatArray, pv_a: FloatArray, *, ts: float, kp: float | None, delay: float,
-           span: float | None, k: float, integrating: bool, force_quantify: bool) -> Details:
+           span: float | None, k: float, integrating: bool, force_quantify: bool,
+           site: Site | None) -> Details:
     """The diagnosis from OP and PV alone (the module's path)."""
     q = check_quality(op_a, pv_a, span)
     warnings = tuple(q.warnings)
@@ -281,11 +220,12 @@ def _op_pv(op_a: FloatArray, pv_a: FloatArray, *, ts: float, kp: float | None, d
     if short is not None and short.withdraws(Verdict.STICTION):  # too short for any verdict
         return Details(Assessment(Verdict.BAD_DATA, short.reason(ts), warnings=warnings),
                        op_c, pv_c, cycle=cycle, start=q.start)
-    found = gather(op_c, pv_c, cycle, integrating=integrating, ts=ts)
+    found = network.added(gather(op_c, pv_c, cycle, integrating=integrating, ts=ts),
+                          op_c, pv_c, cycle)
     d = dataclasses.replace(_decide(
         op_c, pv_c, cycle, found, ts=ts, kp=kp, delay=delay, span=span, k=k,
-        integrating=integrating, force_quantify=force_quantify, warnings=warnings),
-        start=q.start)
+        integrating=integrating, force_quantify=force_quantify, warnings=warnings,
+        site=site), start=q.start)
     if d.assessment.verdict == Verdict.NOT_OSCILLATING and (
             held := held_while_op_ran(op_c, pv_c, span=span)) is not None:  # stuck, not calm
         a = Assessment(Verdict.VALVE_NOT_RESPONDING, held.reason(op_c.size),
@@ -300,43 +240,46 @@ def _op_pv(op_a: FloatArray, pv_a: FloatArray, *, ts: float, kp: float | None, d
 
 def _decide(op_c: FloatArray, pv_c: FloatArray, cycle: Cycle, found: Findings, *, ts: float,
             kp: float | None, delay: float, span: float | None, k: float, integrating: bool,
-            force_quantify: bool, warnings: tuple[str, ...]) -> Details:
+            force_quantify: bool, warnings: tuple[str, ...], site: Site | None) -> Details:
     """The learned decision on a clean window's evidence, the size and the reason."""
     model = learned.load()
     x = features(found.evidence, found.results, cycle, op=op_c, pv=pv_c,
                  integrating=integrating)
-    conf = model.probability(x)
+    dec = model.probability(x)
     parts = model.contributions(x)
+    reading = found.results.get(network.NAME)
+    net = reading.probability if isinstance(reading, network.Reading) else None
+    if site is not None and net is not None:  # the network's probability at the site's share
+        net = at_site(net, site)
+    at = shipped()
+    c = call(dec, net, {e.test: e.vote for e in found.evidence if e.test != network.NAME},
+             too_fast=too_fast_to_see(cycle), at=at)
+    evidence = (*(e if site is None or net is None else at_site_evidence(e, net)
+                  for e in found.evidence),
+                decision_evidence(dec, at.stiction_at, at.no_stiction_at))
     si_test = "si_pv" if integrating else "si_op"
     si = next(e.value for e in found.evidence if e.test == si_test)
     base: dict[str, Any] = {
         "oscillating": cycle.regular,
         "period_s": None if cycle.period is None else cycle.period * ts,
-        "stiction_index": si, "confidence": conf, "evidence": found.evidence}
+        "stiction_index": si, "confidence": c.confidence, "evidence": evidence,
+        **({} if site is None else {"site": ADAPTED, "site_share": site.share})}
     quant: Quantification | None = None
     if force_quantify and limit_cycle(cycle, op_c.size):
         quant = quantify(op_c, pv_c, period=cycle.period or 0.0, ts=ts, kp=kp,
                          delay=delay, integrating=integrating, k=k, pv_noise=found.noise[1])
 
-    if conf < model.stiction_at:
-        verdict, reason = not_stiction(cycle, found.evidence, conf, parts,
-                                       model.no_stiction_at,
-                                       reach_s=op_c.size / SEE_CYCLES * ts)
+    if c.verdict != Verdict.STICTION:
+        verdict, reason = not_called(c, cycle, evidence, parts, at=at,
+                                     reach_s=op_c.size / SEE_CYCLES * ts)
         return Details(Assessment(verdict, reason, warnings=warnings, **base),
                        op_c, pv_c, quant, cycle, found, parts)
-    why_not = gate.unbacked({e.test: e.vote for e in found.evidence},
-                            too_fast=too_fast_to_see(cycle))
-    if why_not is not None:  # no evidence about the valve says stiction: at most undetermined
-        reason = unbacked_text(conf, why_not, found.evidence, parts, cycle)
-        return Details(Assessment(Verdict.UNDETERMINED, reason, warnings=warnings, **base),
-                       op_c, pv_c, quant, cycle, found, parts)
-
     size = size_valve(op_c, pv_c, cycle, quant=quant, ts=ts, kp=kp, delay=delay,
                       integrating=integrating, k=k, pv_noise=found.noise[1],
                       fitted_valve=_fitted_valve(found), ellipse_band=_ellipse_band(found),
                       span=span)
     warnings = (*warnings, *size.warnings)
-    head = stiction_head(conf, found.evidence, parts, cycle)
+    head = stiction_head(c.confidence, evidence, parts, cycle)
     if size.fd_op is None:
         return Details(Assessment(Verdict.STICTION, f"{head} {unsized(size.method, found)}",
                                   multi_jump=size.multi_jump, warnings=warnings, **base),

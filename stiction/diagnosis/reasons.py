@@ -27,23 +27,30 @@ from collections.abc import Mapping
 from .._assessment import Evidence, Verdict
 from ..signal.cycle import Cycle
 from ..signal.oscillation import MIN_PERIOD
+from . import network
+from .call import Call, Thresholds
 from .enough import duration
 
 __all__ = [
+    "DECISION",
     "SAID",
     "VOTES",
     "WHAT",
     "decided",
-    "not_stiction",
+    "decision_evidence",
+    "network_said",
+    "not_called",
     "size_text",
     "stiction_head",
     "too_fast",
     "too_fast_to_see",
-    "unbacked_text",
     "votes_said",
     "weighed",
 ]
 
+DECISION = "decision"
+"""The evidence entry of the learned decision's probability (:func:`decision_evidence`): not
+a test, so no test's vote in the reason nor in the evidence gate."""
 SAID = 3
 """Entries named for, and against, at the most."""
 MIN_PART = 0.05
@@ -56,14 +63,15 @@ WHAT = {
     "ellipse": "the OP-PV pattern", "kano": "where PV stood still while OP moved",
     "stick_slip": "stick-slip episodes", "hammerstein": "the valve fitted to PV",
     "fast_cycle": "how OP and PV are distributed", "cycle": "the cycle's period and "
-    "regularity", "shape": "the shape of OP and PV"}
+    "regularity", "shape": "the shape of OP and PV", network.NAME: network.WHAT}
 """What each entry of the decision looks at: the tests, and the numbers of the gates (the
 cycle, the shape of OP and PV). An entry missing here is named by its key."""
 
 
 def votes_said(evidence: tuple[Evidence, ...]) -> str:
-    """"Tests: stiction: a, b; not stiction: c; cannot tell: d." (module doc)."""
-    groups = [(word, [e.test for e in evidence if e.vote == vote])
+    """"Tests: stiction: a, b; not stiction: c; cannot tell: d." (module doc); the network
+    is one of them, the learned decision (:data:`DECISION`) is not."""
+    groups = [(word, [e.test for e in evidence if e.vote == vote and e.test != DECISION])
               for vote, word in VOTES.items()]
     said = [f"{word}: {', '.join(tests)}" for word, tests in groups if tests]
     return f"Tests: {'; '.join(said)}." if said else "No test ran."
@@ -95,7 +103,18 @@ def decided(evidence: tuple[Evidence, ...], parts: Mapping[str, float]) -> str:
              if keys]
     weight = (f"Weighed most in the decision: {'; '.join(sides)}." if sides else
               "Nothing weighed much either way in the decision.")
-    return f"{votes_said(evidence)} {weight}"
+    return f"{votes_said(evidence)}{network_said(evidence)} {weight}"
+
+
+def network_said(evidence: tuple[Evidence, ...]) -> str:
+    """" The OP-PV shape network: 0.83; the learned decision: 0.41." where the network read
+    the window (its Platt probability, :mod:`.network`; the decision's probability from its
+    evidence :data:`DECISION`), else ''."""
+    net, dec = _value(evidence, network.NAME), _value(evidence, DECISION)
+    if net is None:
+        return ""
+    also = "" if dec is None else f"; the learned decision: {dec:.2f}"
+    return f" {network.WHAT[0].upper()}{network.WHAT[1:]}: {net:.2f}{also}."
 
 
 def stiction_head(conf: float, evidence: tuple[Evidence, ...], parts: Mapping[str, float],
@@ -117,12 +136,15 @@ def too_fast(cycle: Cycle) -> str:
     return ""
 
 
-def unbacked_text(conf: float, why: str, evidence: tuple[Evidence, ...],
-                  parts: Mapping[str, float], cycle: Cycle) -> str:
-    """The reason of a window the decision put at ``stiction`` and the evidence gate
-    (:mod:`.gate`) did not: ``why`` says which rule it failed."""
-    return (f"undetermined, confidence of stiction {conf:.2f}, but {why}: a call of stiction "
-            f"needs a test that says so. {decided(evidence, parts)}{too_fast(cycle)}")
+def decision_evidence(probability: float, stiction_at: float, no_stiction_at: float
+                      ) -> Evidence:
+    """The learned decision's probability as an evidence entry (:data:`DECISION`), its vote
+    +1 from ``stiction_at``, -1 up to ``no_stiction_at``, so that the JSON evidence shows it
+    beside the network's and a site's windows can be called again
+    (:func:`stiction.diagnosis.adapt.adapt`)."""
+    vote = 1 if probability >= stiction_at else -1 if probability <= no_stiction_at else 0
+    return Evidence(DECISION, probability, vote,
+                    f"the learned decision over the tests' numbers: {probability:.2f}")
 
 
 def size_text(fd: float, fs: float | None, unit: str, method: str, *, need_kp: bool) -> str:
@@ -133,12 +155,15 @@ def size_text(fd: float, fs: float | None, unit: str, method: str, *, need_kp: b
     return f" Size: fd {fd:.3g} {unit}{fs_txt}, {method}.{kp}{span}"
 
 
-def not_stiction(cycle: Cycle, evidence: tuple[Evidence, ...], conf: float,
-                 parts: Mapping[str, float], no_stiction_at: float, *, reach_s: float
-                 ) -> tuple[Verdict, str]:
-    """Verdict and reason when the confidence stays under the stiction threshold;
-    ``reach_s``: the longest period the window can show (``not_oscillating`` says it)."""
-    if not cycle.regular and conf <= 0.5:
+def not_called(c: Call, cycle: Cycle, evidence: tuple[Evidence, ...],
+               parts: Mapping[str, float], *, reach_s: float, at: Thresholds
+               ) -> tuple[Verdict, str]:
+    """Verdict and reason of a window :func:`.call.call` did not call ``stiction``;
+    ``reach_s``: the longest period the window can show (``not_oscillating`` says it). A
+    window without a regular cycle at a confidence of 0.5 or less is ``not_oscillating``
+    (unless the decision said stiction there)."""
+    conf = c.confidence
+    if not cycle.regular and conf <= 0.5 and c.unbacked is None and not c.against:
         src = cycle.pv if cycle.source == "PV" else cycle.op
         what = src.osc.reason if not cycle.cycling else (
             f"a cycle of {cycle.period or 0:.0f} samples, but irregular, regularity "
@@ -146,9 +171,27 @@ def not_stiction(cycle: Cycle, evidence: tuple[Evidence, ...], conf: float,
         return Verdict.NOT_OSCILLATING, (
             f"no regular oscillation in OP or PV with a period up to {duration(reach_s)}, "
             f"the longest this window can show: {what}; confidence of stiction {conf:.2f}")
-    if conf <= no_stiction_at:
-        return Verdict.NO_STICTION, (f"not stiction, confidence of stiction {conf:.2f}. "
-                                     f"{decided(evidence, parts)}")
+    said = f"{decided(evidence, parts)}{too_fast(cycle)}"
+    if c.verdict == Verdict.NO_STICTION:
+        return Verdict.NO_STICTION, f"not stiction, confidence of stiction {conf:.2f}. {said}"
+    dec = _value(evidence, DECISION)
+    net = _value(evidence, network.NAME)
+    if c.unbacked is not None:
+        by = "," if net is None or dec is None else \
+            f": the learned decision says stiction ({dec:.2f}),"
+        return Verdict.UNDETERMINED, (
+            f"undetermined, confidence of stiction {conf:.2f}{by} but {c.unbacked}: a call of "
+            f"stiction needs a test that says so. {said}")
+    if c.against and net is not None and dec is not None:
+        return Verdict.UNDETERMINED, (
+            f"undetermined, confidence of stiction {conf:.2f}: the learned decision says "
+            f"stiction ({dec:.2f}), {network.WHAT} not ({net:.2f}, under {at.band_low:.2f}). "
+            f"{said}")
+    between = "the tests" if net is None else \
+        f"{network.WHAT} ({at.band_low:.2f}-{at.threshold:.2f})"
     return Verdict.UNDETERMINED, (f"undetermined, confidence of stiction {conf:.2f}: between "
-                                  f"what the tests tell apart. {decided(evidence, parts)}"
-                                  f"{too_fast(cycle)}")
+                                  f"what {between} tells apart. {said}")
+
+
+def _value(evidence: tuple[Evidence, ...], test: str) -> float | None:
+    return next((e.value for e in evidence if e.test == test), None)

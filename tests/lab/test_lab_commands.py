@@ -12,8 +12,10 @@ from lab import commands
 @pytest.mark.parametrize("argv", [[], ["bogus"], ["--write"]])
 def test_an_unknown_command_prints_the_usage(argv: list[str], capsys) -> None:
     assert commands.main(argv) == 2
-    assert "usage: python -m lab {corpus | train [--write] | calibrate [--write]}" in \
-        capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "usage: python -m lab {corpus | train [--write] | decide | calibrate [--write] | " \
+        "shape-corpus [--chunks N] | shape [--search | --write]}" in err
+    assert all(name in err for name in commands.COMMANDS)
 
 
 def test_the_old_names_run_the_labs_commands(monkeypatch) -> None:

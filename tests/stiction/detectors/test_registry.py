@@ -12,7 +12,9 @@ from detector_fixtures import cached_sim
 from stiction import Evidence, Verdict, analyze
 from stiction.detectors import registry
 from stiction.detectors.base import NO_CYCLE, Detector, Fitted, Window, evidence_of
+from stiction.diagnosis import network
 from stiction.diagnosis.evidence import TESTS
+from stiction.diagnosis.reasons import DECISION
 
 
 def _sticky() -> tuple[np.ndarray, np.ndarray]:
@@ -32,7 +34,8 @@ def test_every_registered_detector_is_a_documented_function_with_its_reference()
 def test_each_detector_names_its_evidence_as_registered() -> None:
     op, pv = _sticky()
     a = analyze(op, pv, ts=1.0)
-    assert [e.test for e in a.evidence] == list(TESTS)
+    # the network and the learned decision's probability after them
+    assert [e.test for e in a.evidence] == [*TESTS, network.NAME, DECISION]
     assert a.verdict == Verdict.STICTION  # the window every detector gets to see
 
 
@@ -49,8 +52,9 @@ def test_a_toy_detector_added_in_one_line_shows_in_analyze(
     monkeypatch.setattr(registry, "DETECTORS",
                         (*registry.DETECTORS, Detector("toy", toy, "a toy, for this test")))
     after = analyze(op, pv, ts=1.0)
-    assert after.evidence[-1] == Evidence("toy", float(op.size), 1, "a toy says stiction")
-    assert after.evidence[:-1] == before.evidence
+    assert after.evidence[len(TESTS)] == Evidence("toy", float(op.size), 1,
+                                                  "a toy says stiction")
+    assert tuple(e for e in after.evidence if e.test != "toy") == before.evidence
     # the window a detector sees: the clean signals, the cycle the gates found, the noise
     (w,) = seen
     assert w.ts == 1.0 and not w.integrating and w.op.size == op.size

@@ -11,12 +11,13 @@ import pytest
 
 from lab.sources import records
 from stiction import Verdict, analyze
+from stiction.diagnosis import network
 from stiction.diagnosis.analyze import Details, analyze_details
 from stiction.diagnosis.gate import FAST_READERS, unbacked
-from stiction.diagnosis.reasons import too_fast_to_see
+from stiction.diagnosis.reasons import DECISION, too_fast_to_see
 from stiction.scenarios import scenario, simulate
 
-RECORD = records.PLANT / "STI_2411FIC20102_0825_0004.csv"
+RECORD = records.PLANT / "STI_2411FIC20102_1207_0004.csv"
 
 
 def test_the_gate_needs_a_vote_for_stiction() -> None:
@@ -61,14 +62,24 @@ def _need_plant() -> None:
 
 
 def test_a_record_whose_tests_all_abstain_is_not_stiction() -> None:
-    """The issue's plant record: 0.97 while all nine tests said cannot tell."""
+    """A plant record of the issue's tag: the learned decision reads 0.96 while all nine
+    tests say cannot tell; the shape network reads it in its abstention band (0.58, far
+    from both its thresholds): not a call (the issue's own record, 0825_0004, the network
+    now reads at its threshold, 0.69)."""
     _need_plant()
     data = np.genfromtxt(RECORD, delimiter=",", names=True)
     a = analyze(data["op"], data["pv"], ts=10.0)
     assert a.verdict == Verdict.UNDETERMINED
+    votes = {e.test: e.vote for e in a.evidence}
+    values = {e.test: e.value for e in a.evidence}
+    assert set(votes.values()) == {0, 1} and votes[DECISION] == 1  # only the decision +1
+    band_low, threshold = network.thresholds()
+    net = values[network.NAME]
+    assert net is not None and band_low + 0.1 < net < threshold - 0.05
     assert "no test says stiction (every test cannot tell)" in a.reason
-    assert a.confidence is not None  # the decision's number is kept, and said
+    assert a.confidence == net  # the network's number is the confidence, and said
     assert f"confidence of stiction {a.confidence:.2f}" in a.reason
+    assert f"the learned decision says stiction ({values[DECISION]:.2f})" in a.reason
 
 
 def _stiction_unbacked(d: Details) -> str | None:
@@ -76,7 +87,7 @@ def _stiction_unbacked(d: Details) -> str | None:
     a = d.assessment
     if a.verdict != Verdict.STICTION:
         return None
-    votes = {e.test: e.vote for e in a.evidence}
+    votes = {e.test: e.vote for e in a.evidence if e.test != DECISION}  # tests and network
     if d.cycle is not None and too_fast_to_see(d.cycle):
         ok = any(votes.get(t, 0) > 0 for t in FAST_READERS) or votes.get("travel", 0) > 0
     else:
