@@ -35,7 +35,10 @@ In this order:
    fewer than ``DIRECTION_SAMPLES`` samples a period (a historian's 30 or 60 s on a cycle
    of minutes) a net flow of 0.1 either way is noise: there the loop whose cycle is the
    most nonlinear by twice ``NLI_MARGIN`` and does not clearly trail (net flow within
-   ``FLOW_MARGIN`` of the others') is named by its nonlinearity.
+   ``FLOW_MARGIN`` of the others') is named by its nonlinearity. An indicator's lead does
+   not count against a loop whose own window suspects its valve (``CONFIDENT``) and whose
+   cycle is nonlinear, unless the indicator's is the clearly nonlinear one (a cooling-water
+   temperature read right after a sticky valve that its window cannot call at 36 s).
 4. **An indicator** (a measured signal of no loop) that leads the loops' cycle (its net
    Granger flow at least ``FLOW_LEADS`` and above every loop's):
 
@@ -195,7 +198,8 @@ def _leads(top: MemberEvidence, ranking: Sequence[MemberEvidence],
     reaches ``SOURCE_SCORE``."""
     flow = top.flow or 0.0
     if flow < FLOW_LEADS or flow < max(e.flow or 0.0 for e in ranking) or \
-            flow <= max((i.flow for i in indicators if i.flow is not None), default=-1e9):
+            flow <= max((i.flow for i in indicators if i.flow is not None
+                         and _against(i, top)), default=-1e9):
         return []
     others = max((nli_of(e) for e in ranking
                   if e is not top and cascades.get(e.loop) != top.loop), default=-1e9)
@@ -204,6 +208,14 @@ def _leads(top: MemberEvidence, ranking: Sequence[MemberEvidence],
         return ["direction", "nonlinearity"]
     return ["direction", "own valve"] if flow >= FLOW_NAME and top.valve >= SOURCE_SCORE \
         else []
+
+
+def _against(ind: IndicatorEvidence, e: MemberEvidence) -> bool:
+    """Does an indicator's lead count against loop ``e`` being named by direction or
+    nonlinearity? Not where its window suspects its own valve (``CONFIDENT``) and its cycle
+    is nonlinear while the indicator's is not the clearly nonlinear one (:func:`_entry_beats`):
+    a signal read after its valve leads it through the loop's own dynamics."""
+    return (e.confidence or 0.0) < CONFIDENT or _entry_beats(ind, e)
 
 
 def _cleared(e: MemberEvidence) -> bool:
@@ -260,7 +272,7 @@ def _choose(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvi
         source, named = top, ["own valve"]
     elif _leads(top, ranking, indicators, cascades):
         source, named = top, _leads(top, ranking, indicators, cascades)
-    elif not resolved and (clear := shaped(ranking, indicators)) is not None:
+    elif not resolved and (clear := shaped(ranking, indicators, _against)) is not None:
         source, named = clear, ["nonlinearity"]
     held = next((e for e in ranking if e.loop == previous), None)
     if held is not None and held is not source and _holds(held) and \

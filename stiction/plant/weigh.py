@@ -90,19 +90,21 @@ def stronger(a: MemberEvidence, b: MemberEvidence, flow: Flow | None, *,
     return more(a, b, lead) > more(b, a, None if lead is None else -lead)
 
 
-def shaped(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvidence]
-            ) -> MemberEvidence | None:
+def shaped(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvidence],
+           counts: Callable[[IndicatorEvidence, MemberEvidence], bool] | None = None
+           ) -> MemberEvidence | None:
     """Where the cycle is not resolved for direction (``DIRECTION_SAMPLES``): the loop whose
     cycle is nonlinear and the most nonlinear by twice ``NLI_MARGIN``, its net flow within
-    ``FLOW_MARGIN`` of the highest of the others, loops' and indicators' (it does not
-    clearly trail), or None (:mod:`.decide`, 3)."""
+    ``FLOW_MARGIN`` of the highest of the others, loops' and indicators' (those ``counts``
+    says count against it; None: all), or None (:mod:`.decide`, 3)."""
     measured = [e for e in ranking if e.nli is not None]
     if not measured:
         return None
     best = max(measured, key=nli_of)
     others = max((nli_of(e) for e in ranking if e is not best), default=-1e9)
     flows = [e.flow for e in ranking if e is not best and e.flow is not None] + \
-        [i.flow for i in indicators if i.flow is not None]
+        [i.flow for i in indicators
+         if i.flow is not None and (counts is None or counts(i, best))]
     if nli_of(best) <= NLI_NONLINEAR or nli_of(best) < others + 2.0 * NLI_MARGIN or \
             best.flow is None or best.flow < max(flows, default=-1e9) - FLOW_MARGIN:
         return None

@@ -6,8 +6,9 @@ its own evidence as `python -m bench plantwide` measured it (stiction.plant.deci
 - a weak lead and a nonlinear cycle do not name a loop whose valve fit clears its valve;
 - a confident call whose linear cycle trails an indicator's clearly nonlinear one is kept,
   the cycle entering from outside;
-- an indicator's lead does not stop a loop's own sticky valve naming it, unless the
-  indicator's cycle is the clearly nonlinear one and the loop's linear.
+- an indicator's lead does not stop a loop's own sticky valve (or its suspected valve and
+  nonlinear cycle) naming it, unless the indicator's cycle is the clearly nonlinear one and
+  the loop's linear.
 """
 
 from __future__ import annotations
@@ -126,3 +127,21 @@ def test_an_indicator_read_before_the_loops_transmitter_does_not_hide_its_sticky
     linear = [_loop("LIC101", 0.72, 0.19, 0.4, gain=0.77), *ranking[1:]]
     d = decide(linear, [gauge], flow, granger, cascades={})
     assert d.source is None and d.outside == "LI105"
+
+
+def test_a_suspected_valve_is_not_hidden_by_a_signal_read_after_it() -> None:
+    """TEP mode 1, IDV 14 at 1 % (the reactor cooling-water valve XMV10 sticks; 36 s, a 269 s
+    cycle: 7.5 samples a period): its own window suspects it at 0.98 (undetermined: the
+    cycle is too fast to see its shape), its cycle is the nonlinear one (2.2); the cooling
+    water's outlet temperature XMEAS21, right after the valve, leads it (+0.17, index 4.5).
+    Before, the cycle 'entered from outside' by XMEAS21; now XMV10 is named by its
+    nonlinearity, XMEAS21 upstream. A loop its window does not suspect is not."""
+    other = _loop("XMV11", 0.19, -0.11, -0.1, verdict="not_oscillating")
+    xmeas21 = IndicatorEvidence("XMEAS21", 0.45, flow=0.17, nli=4.46)
+    flow, granger = _flows({})
+    valve = _loop("XMV10", 0.98, -0.06, 2.18, strength=0.38)
+    d = decide([valve, other], [xmeas21], flow, granger, cascades={}, period=7.5)
+    assert d.source == "XMV10" and d.named_by[0] == "nonlinearity" and d.upstream == "XMEAS21"
+    unsure = _loop("XMV10", 0.6, -0.06, 2.18, strength=0.38)
+    d = decide([unsure, other], [xmeas21], flow, granger, cascades={}, period=7.5)
+    assert d.source is None and d.outside == "XMEAS21"
