@@ -53,7 +53,7 @@ corpus: $(BENCH_STAMP)
 	$(BIN)/python -m lab corpus
 
 soak: $(STAMP)
-	$(BIN)/python -m bench.soak
+	$(BIN)/python -m bench.field.soak
 
 # the newest release of every dependency (no lock) in .venv-latest, then the whole suite:
 # what `make lock` would bring in, before it is committed

@@ -1,7 +1,10 @@
-"""Run every benchmark module in this package (each prints its own table).
+"""Run every benchmark module of this package's rooms (each prints its own table).
 
-`python -m bench` runs all; `python -m bench NAME ...` runs the named modules only.
-Modules listed in SKIP (long soak runs) have their own make targets.
+The rooms: ``accuracy`` (is the verdict right), ``speed`` (how fast and how big), ``attacks``
+(the red team's), ``field`` (as a plant runs it); ``caselist`` and the lab's old command
+names sit at the top. `python -m bench` runs all; `python -m bench NAME ...` runs the named
+modules (``plantwide``) or whole rooms (``accuracy``). Modules listed in SKIP (long soak
+runs) have their own make targets.
 """
 
 from __future__ import annotations
@@ -21,19 +24,36 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 
-def main(argv: list[str]) -> int:
+ROOMS = ("accuracy", "speed", "attacks", "field")
+
+
+def modules() -> dict[str, str]:
+    """Every benchmark's name -> its module (``plantwide`` -> ``bench.accuracy.plantwide``),
+    the rooms' in order, then the top's; SKIP's included (they run when named)."""
     here = Path(__file__).parent
-    names = sorted(m.name for m in pkgutil.iter_modules([str(here)])
-                   if not m.name.startswith("_") and m.name not in SKIP)
-    chosen = argv or names
-    unknown = [n for n in chosen if n not in names and n not in SKIP]
+    out: dict[str, str] = {}
+    for prefix, folder in [*((f"bench.{r}.", here / r) for r in ROOMS), ("bench.", here)]:
+        for m in sorted(pkgutil.iter_modules([str(folder)]), key=lambda m: m.name):
+            if not m.name.startswith("_") and not m.ispkg:
+                out.setdefault(m.name, prefix + m.name)
+    return out
+
+
+def main(argv: list[str]) -> int:
+    known = modules()
+    rooms = {r: [n for n, mod in known.items() if mod.startswith(f"bench.{r}.")
+                 and n not in SKIP] for r in ROOMS}
+    chosen: list[str] = []
+    for name in argv or [n for n in known if n not in SKIP]:
+        chosen += rooms.get(name, [name])
+    unknown = [n for n in chosen if n not in known]
     if unknown:
-        print(f"bench: unknown benchmark(s): {', '.join(unknown)} (known: {', '.join(names)})",
+        print(f"bench: unknown benchmark(s): {', '.join(unknown)} (known: rooms "
+              f"{', '.join(ROOMS)}; {', '.join(n for n in known if n not in SKIP)})",
               file=sys.stderr)
         return 2
     for name in chosen:
-        module = importlib.import_module(f"bench.{name}")
-        module.main()
+        importlib.import_module(known[name]).main()
     return 0
 
 

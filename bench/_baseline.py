@@ -2,7 +2,7 @@
 
 :func:`baseline_stiction` extracts the ``stiction`` package of a baseline commit
 (``BENCH_BASELINE``, default :data:`BASELINE`: main when issue 28 was filed) with
-:func:`bench._arena.baseline_tree` (``git archive``; nothing of the repository changes) and
+:func:`bench.attacks._arena.baseline_tree` (``git archive``; nothing of the repository changes) and
 imports it under the name ``stiction_baseline``. Every module of the library imports its
 siblings relatively, so the two versions load side by side and a benchmark can time them
 interleaved, call by call: on a shared box the load changes from one second to the next,
@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterator
 from types import ModuleType
 from typing import Any
 
-from bench._arena import baseline_tree
+from bench.attacks._arena import baseline_tree
 
 BASELINE = "3dfa8c7"  # main when issue 28 was filed
 ALIAS = "stiction_baseline"

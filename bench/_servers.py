@@ -1,5 +1,5 @@
 """Real Prometheus and VictoriaMetrics servers on 127.0.0.1, started from the shipped deploy
-files, for the fleet benchmark (bench/fleet.py) and the deployment tests
+files, for the fleet benchmark (bench/speed/fleet.py) and the deployment tests
 (tests/support/deploy_support.py, fleet_support.py).
 
 Every server runs the shipped flags (/etc/default ARGS, a unit's ExecStart) with only the

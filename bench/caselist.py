@@ -8,7 +8,8 @@ baseline commit (before) and on this tree (after), side by side in one run.
 Each case is a function in a file of ``bench/_caselist/`` decorated with ``_case.case``; the
 file runs as a script (``python FILE NAME``) with the tree under test first on
 ``PYTHONPATH``, so ``stiction``, ``gateway`` and ``plcsim`` are that tree's (the baseline's
-extracted by ``git archive``, :func:`bench._arena.baseline_tree`). A case prints one JSON line:
+extracted by ``git archive``, :func:`bench.attacks._arena.baseline_tree`). A case prints one
+JSON line:
 ``said`` (what the tree answered, in a few words) and ``ok`` (whether that answer is the one
 the finding asks for). A case that raises is reported with the exception's last line and is
 not ok. Cases run one at a time; each has ``TIMEOUT_S`` seconds.
@@ -24,26 +25,33 @@ import textwrap
 import time
 from pathlib import Path
 
-from bench._arena import REPO, baseline_tree
+from bench.attacks._arena import REPO, baseline_tree
 
 BASELINE = "5c94178"  # main when issues 35 and 38 were filed
 HERE = Path(__file__).resolve().parent / "_caselist"
 TIMEOUT_S = 300.0
 
 
+def _path(tree: Path) -> str:
+    """The case files' ``PYTHONPATH``: the tree under test first, then the cases' folder (for
+    ``_case``). The files run with ``-P``: their own folder is not put first, where a case
+    file's name (``gateway.py``) would stand for the package under test."""
+    return f"{tree}{os.pathsep}{HERE}"
+
+
 def _names(path: Path) -> list[tuple[str, str, str]]:
     """``(name, issue, finding)`` of every case in one file, in file order."""
-    out = subprocess.run([sys.executable, str(path), "--list"], capture_output=True,
-                         text=True, check=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    out = subprocess.run([sys.executable, "-P", str(path), "--list"], capture_output=True,
+                         text=True, check=True, env={**os.environ, "PYTHONPATH": _path(REPO)})
     return [tuple(json.loads(line)) for line in out.stdout.splitlines() if line.strip()]
 
 
 def run_case(path: Path, name: str, tree: Path) -> dict[str, object]:
     """One case on one tree: its JSON line, or what went wrong."""
-    env = {**os.environ, "PYTHONPATH": str(tree), "BENCH_CASE_TREE": str(tree)}
+    env = {**os.environ, "PYTHONPATH": _path(tree), "BENCH_CASE_TREE": str(tree)}
     t0 = time.perf_counter()
     try:
-        out = subprocess.run([sys.executable, str(path), name], check=False,
+        out = subprocess.run([sys.executable, "-P", str(path), name], check=False,
                              capture_output=True, text=True, env=env, cwd=tree, timeout=TIMEOUT_S)
     except subprocess.TimeoutExpired:
         return {"said": f"no answer in {TIMEOUT_S:.0f} s", "ok": False, "s": TIMEOUT_S}

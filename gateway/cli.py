@@ -1,4 +1,4 @@
-"""`stiction-gateway` command line: run, check-config, findings, opcua-cert, the onboarding
+"""`stiction-gateway` command line: run, check-config, findings, report, opcua-cert, the onboarding
 commands import-tags, probe, browse, result-map (:mod:`.runtime.onboarding`), and the
 commands other packages register (:data:`COMMANDS`: the simulator's plc-sim and demo).
 
@@ -45,6 +45,16 @@ def build_parser() -> argparse.ArgumentParser:
     fnd = sub.add_parser("findings", help="the engineer's findings beside the verdicts of "
                          "their day (docs/onboarding.md#9-confirming-a-suspect-valve)")
     fnd.add_argument("--config", required=True, metavar="FILE", help="gateway YAML config")
+    rep = sub.add_parser("report", help="the maintenance meeting's page: the valves worst "
+                         "first and a section per suspect valve, one HTML file "
+                         "(docs/onboarding.md#10-the-list-and-the-report)")
+    rep.add_argument("--config", required=True, metavar="FILE", help="gateway YAML config")
+    rep.add_argument("--since", default="7d", metavar="PERIOD",
+                     help="the period of the verdict history shown: 7d (default), 12h, 2w")
+    rep.add_argument("-o", "--output", required=True, metavar="FILE",
+                     help="the HTML file to write (- for standard output)")
+    rep.add_argument("--sections", type=int, default=25, metavar="N",
+                     help="suspect valves given a section of their own (default 25)")
     sub.add_parser("opcua-cert", add_help=False,
                    help="create an OPC UA client (or --server) certificate and key "
                         "(see `stiction-gateway opcua-cert --help`, docs/opcua.md)")
@@ -110,6 +120,16 @@ def _dispatch(args: argparse.Namespace) -> int:
         return 0
     if args.command == "findings":
         return _findings(args.config)
+    if args.command == "report":
+        import time
+
+        from .runtime.report import write_report
+
+        n = write_report(load_config(args.config), args.output, since=args.since,
+                         now=time.time(), sections=max(0, args.sections))
+        if args.output != "-":
+            print(f"wrote {args.output}: {n} loop(s) listed")
+        return 0
     if args.command in onboarding.COMMANDS:
         return onboarding.dispatch(args)
     if args.command == "run":

@@ -32,7 +32,7 @@ from prometheus_client.core import GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 from reliability_helpers import until
 
-from bench._attacks import attack_process, read_frame
+from bench.attacks._attacks import attack_process, read_frame
 from gateway.config import parse_config
 from gateway.outputs.prometheus import GatewayMetrics
 from gateway.outputs.prometheus.http import MetricsServer

@@ -24,7 +24,7 @@ from memory_harness import FAKE, Harness, mconfig, mloop, wiggle
 from prometheus_client import CollectorRegistry, generate_latest
 from reliability_helpers import until
 
-from bench._attacks import rewrite_state
+from bench.attacks._attacks import rewrite_state
 from gateway.config import parse_config
 from gateway.inputs.memory import memory_device
 from gateway.outputs.statefile import StateFile

@@ -24,7 +24,7 @@ import pytest
 from memory_harness import Harness, mconfig, mloop, wiggle
 from reliability_helpers import lateness
 
-from bench._attacks import read_frame
+from bench.attacks._attacks import read_frame
 from gateway.config import parse_config
 from gateway.inputs.memory import memory_device
 from gateway.wire.listener import JUST_CONNECTED_S, Conn, Listener

@@ -24,9 +24,8 @@ import numpy as np
 import yaml
 from _case import REPO, case, run
 
-# this file's folder is first on sys.path (it runs as a script), where its own name would
-# stand for the gateway package under test
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+# (bench/caselist.py runs this file with -P: its folder is not first on sys.path, where its
+# own name would stand for the gateway package under test)
 
 FAKE = '''
 import numpy as np

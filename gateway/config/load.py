@@ -30,6 +30,7 @@ from .model import (
     MIN_WINDOW_SAMPLES,
     PROCESSES,
     WORD_ORDERS,
+    AnalysisSettings,
     Config,
     DeviceConfig,
     GatewaySettings,
@@ -78,6 +79,7 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
     plant = _settings(top.sub("plant", "plant"), PlantSettings, PLANT_KEYS)
     hysteresis = _settings(top.sub("verdict_hysteresis", "verdict_hysteresis"),
                            HysteresisSettings, HYSTERESIS_KEYS)
+    analysis = _settings(top.sub("analysis", "analysis"), AnalysisSettings, ANALYSIS_KEYS)
 
     devices: dict[str, DeviceConfig | None] = {}  # None: named but invalid
     protocols: dict[str, str] = {}  # device name -> protocol, also for invalid devices
@@ -144,7 +146,7 @@ def parse_config(data: Any, source: str = "<config>", *, one_gateway: bool = Tru
         raise ConfigError(problems.lines)
     config = Config(source, tuple(d for d in devices.values() if d is not None),
                     tuple(loops), gateway, metrics, server, assigned=tuple(assigned),
-                    plant=plant, hysteresis=hysteresis,
+                    plant=plant, hysteresis=hysteresis, analysis=analysis,
                     findings=None if findings in (None, MISSING)
                     else str(findings_path(source, findings)))
     if one_gateway:
@@ -184,6 +186,12 @@ HYSTERESIS_KEYS: dict[str, Callable[[Any], Any]] = {
     "margin": s.number(non_negative=True, at_most=1.0),
     "band": s.number(non_negative=True, at_most=0.5),
 }
+ANALYSIS_KEYS: dict[str, Callable[[Any], Any]] = {
+    "site_calibration": s.boolean,
+    "site_calibration_min_each": s.integer(2, 1000),
+}
+
+
 def _block_registers(value: Any) -> int:
     """``modbus_server.block_registers``: 20 or 32."""
     if isinstance(value, bool) or value not in BLOCK_SIZES:
@@ -274,13 +282,14 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
                              None)  # None: assigned once every loop is read
     result_unit_id = sec.opt("result_unit_id", s.integer(1, MAX_RESULT_UNIT_ID), default_unit)
     unit = sec.opt("unit", _unit, "")
+    priority = sec.opt("priority", s.number(positive=True, at_most=1e6), 1.0)
     if device is not None and window is not MISSING \
             and window / device.poll_interval_s < MIN_WINDOW_SAMPLES:
         sec.error("window_s", f"must hold at least {MIN_WINDOW_SAMPLES} samples of device "
                   f"{device.name} (poll_interval_s {device.poll_interval_s:g})")
         window = MISSING
     values = (name, device_name, process, kp, delay, window, op_range, result_address,
-              result_unit_id, unit)
+              result_unit_id, unit, priority)
     if MISSING in values or device is None or None in points.values():
         return None
     op, pv = points["op"], points["pv"]
@@ -290,7 +299,7 @@ def _parse_loop(sec: Section, devices: Mapping[str, DeviceConfig | None],
                       result_address=result_address, process=process, kp=kp,
                       delay_s=delay, window_s=window, op_range=op_range,
                       result_unit_id=result_unit_id, origin=sec.origin, unit=unit,
-                      position=position)
+                      position=position, priority=priority)
 
 
 def _unit(value: Any) -> str:

@@ -16,6 +16,7 @@ __all__ = [
     "MIN_WINDOW_SAMPLES",
     "PROCESSES",
     "WORD_ORDERS",
+    "AnalysisSettings",
     "Config",
     "DeviceConfig",
     "GatewaySettings",
@@ -104,6 +105,17 @@ class HysteresisSettings:
 
 
 @dataclasses.dataclass(frozen=True)
+class AnalysisSettings:
+    """``analysis``: what the gateway makes of the analysis (docs/configuration.md)."""
+
+    # fit the site's own calibration of the confidence on the findings file, once it holds
+    # findings of both kinds (stiction.ranking.calibration; runtime/crewlist.py)
+    site_calibration: bool = True
+    # findings of each kind (sticky, not sticky) before the site's calibration is fitted
+    site_calibration_min_each: int = 5
+
+
+@dataclasses.dataclass(frozen=True)
 class DeviceConfig:
     """One device (one connection). ``options`` is the protocol plugin's own frozen
     dataclass (e.g. :class:`gateway.inputs.modbus.config.ModbusDeviceOptions`)."""
@@ -156,6 +168,10 @@ class LoopConfig:
     # without one keeps the signatures (and state files) it had before the key existed;
     # core.windows.loop_signature adds it where it is set.
     position: PointConfig | None = dataclasses.field(default=None, repr=False)
+    # the plant's weight of the loop in the list worst first (core/ranking.py): the
+    # suspicion is multiplied by it. Not in repr: it changes neither the window nor the
+    # assessment (signatures and state files stay)
+    priority: float = dataclasses.field(default=1.0, repr=False)
 
     @property
     def points(self) -> tuple[tuple[str, PointConfig], ...]:
@@ -181,6 +197,7 @@ class Config:
     # config's folder); None: none. Read at start and on SIGHUP, never by load_config: a
     # bad findings file never makes the config invalid (gateway.config.findings)
     findings: str | None = None
+    analysis: AnalysisSettings = AnalysisSettings()
 
     def device(self, name: str) -> DeviceConfig:
         for dev in self.devices:

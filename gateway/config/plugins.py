@@ -28,6 +28,7 @@ OUTPUTS: dict[str, str] = {
     "prometheus": "gateway.outputs.prometheus",
     "statefile": "gateway.outputs.statefile",
     "verdicts": "gateway.outputs.verdicts",
+    "sitecal": "gateway.outputs.sitecal",
     "memory": "gateway.outputs.memory",
 }
 """Output name -> output plugin module."""

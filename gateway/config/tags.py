@@ -62,6 +62,8 @@ COLUMNS: dict[str, str] = {
     "result_unit_id": "result unit id (default: modbus_server.unit_id)",
     "unit": "plant unit (area): the plant view groups loops of one unit only (default: "
             "none)",
+    "priority": "the plant's weight of the loop in the list of valves to check, worst "
+                "first: its suspicion is multiplied by it (default 1)",
 }
 """The columns of a tag list and what each holds (empty cell: the key's default)."""
 REQUIRED_COLUMNS = ("name", "device", "op", "pv")

@@ -28,6 +28,7 @@ from stiction.diagnosis.enough import (
     movement_scales,
     too_short,
 )
+from stiction.ranking import swing
 
 from .points import Quality
 from .windows import LoopGroup, position_segment, segment_of
@@ -95,8 +96,9 @@ def resolve(path: str) -> Callable[..., Assessment]:
 
 
 def analyze_batch(path: str, jobs: Sequence[LoopJob]
-                  ) -> list[tuple[int, Assessment, float, int, float]]:
-    """Worker entry: (index, assessment, window fill, samples used, seconds) per job."""
+                  ) -> list[tuple[int, Assessment, float, int, float, float | None]]:
+    """Worker entry: (index, assessment, window fill, samples used, seconds, the PV's swing
+    over the samples used: :func:`stiction.ranking.swing`) per job."""
     analyze = resolve(path)
     out = []
     for job in jobs:
@@ -117,7 +119,7 @@ def analyze_batch(path: str, jobs: Sequence[LoopJob]
                            fill, short=too_short(len(op), waiting=True))
         else:
             a = _while_filling(_analyze(analyze, job, op, pv, position), op, pv, job, fill)
-        out.append((job.index, a, fill, len(op), time.perf_counter() - t0))
+        out.append((job.index, a, fill, len(op), time.perf_counter() - t0, swing(pv)))
     return out
 
 

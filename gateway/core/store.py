@@ -41,6 +41,10 @@ class LoopResult:
     judged: float | None = None  # wall Unix seconds of the round that judged the verdict
     # (None: this one, ``t``); older while it is held (core/hysteresis.py)
     hold: int = 0  # 0 judged this round, 1 held back (hysteresis), 2 held through warming up
+    # the PV's swing over the window analysed (half its 2-98 % range, PV units;
+    # stiction.ranking.swing): what the cycle costs, for the list worst first
+    pv_swing: float | None = None
+    since: float | None = None  # wall Unix seconds since which the loop has had this verdict
 
     @property
     def judged_at(self) -> float:
@@ -69,6 +73,12 @@ class ResultStore:
         # next assessment is numbered above it, so the number never goes backwards
         self.seq_floor = np.zeros(n, dtype=np.int64)
         self.plant = PlantView()  # the plant-wide groups and roles (core/plantview.py)
+        # the list worst first (core/ranking.py): each loop's place from 1 (0: not yet
+        # ranked) and suspicion; the plant's weights of it: priority and the PV's span
+        self.rank = np.zeros(n, dtype=np.int64)
+        self.suspicion = np.full(n, np.nan)
+        self.priority = np.ones(n)
+        self.pv_span = np.full(n, np.nan)
         self._subscribers: list[Callable[[int], None]] = []
 
     def subscribe(self, fn: Callable[[int], None]) -> None:
@@ -79,11 +89,15 @@ class ResultStore:
             fn(i)
 
     def set_result(self, i: int, assessment: Assessment, *, t: float, window_fill: float,
-                   samples: int, judged: float | None = None, hold: int = 0) -> LoopResult:
+                   samples: int, judged: float | None = None, hold: int = 0,
+                   pv_swing: float | None = None) -> LoopResult:
         prev = self.results[i]
         seq = max(prev.seq if prev else 0, int(self.seq_floor[i])) + 1
-        res = LoopResult(assessment, seq, t, window_fill, samples,
-                         None if judged is None or judged == t else judged, hold)
+        judged = None if judged is None or judged == t else judged
+        since = prev.since if prev is not None and prev.since is not None \
+            and prev.assessment.verdict == assessment.verdict else judged or t
+        res = LoopResult(assessment, seq, t, window_fill, samples, judged, hold, pv_swing,
+                         since)
         self.results[i] = res
         self._notify(i)
         return res
@@ -128,6 +142,16 @@ class ResultStore:
             if i is not None and old.of(name) != view.of(name):
                 self._notify(i)
 
+    def set_ranks(self, rank: NDArray[np.int64], suspicion: NDArray[np.float64]) -> None:
+        """The list's new places and scores (core/ranking.py); subscribers hear of the loops
+        whose place or score changed."""
+        changed = np.flatnonzero((self.rank != rank) | ~(
+            (self.suspicion == suspicion) | (np.isnan(self.suspicion) & np.isnan(suspicion))))
+        self.rank[:] = rank
+        self.suspicion[:] = suspicion
+        for i in changed:
+            self._notify(int(i))
+
     def plant_registers(self, i: int) -> tuple[int, int, int]:
         """Loop ``i``'s (group number, role code, source loop's index from 1 in config
         order; 0: none) for its result block."""
@@ -141,7 +165,8 @@ class ResultStore:
         return StoreSnapshot(self.loops, tuple(self.results), self.latest_op.copy(),
                              self.latest_pv.copy(), self.stale.copy(), self.down.copy(),
                              self.plant, self.latest_position.copy(),
-                             self.position_quality.copy())
+                             self.position_quality.copy(), self.rank.copy(),
+                             self.suspicion.copy())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -157,6 +182,8 @@ class StoreSnapshot:
     plant: PlantView = dataclasses.field(default_factory=PlantView)
     latest_position: NDArray[np.float64] | None = None  # None: as NaN / NO_POSITION
     position_quality: NDArray[np.uint8] | None = None
+    rank: NDArray[np.int64] | None = None  # None: not ranked (0)
+    suspicion: NDArray[np.float64] | None = None
 
     def verdict_name(self, i: int) -> str:
         return verdict_name(self.results[i], bool(self.stale[i]), bool(self.down[i]))

@@ -12,18 +12,21 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import datetime as dt
 import logging
 import os
+import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import BinaryIO, Protocol, TypeVar
+from typing import Any, BinaryIO, Protocol, TypeVar
 
 from ..config.model import Config
 from ..core.store import ResultStore
 from ..core.ticks import ProcessClock
 from ..core.windows import LoopGroup
 
-__all__ = ["Binding", "PeriodicWrites", "Sink", "Swap", "in_thread", "write_atomically"]
+__all__ = ["Binding", "PeriodicWrites", "Sink", "Swap", "check_days", "in_thread",
+           "remove_temporaries", "set_aside", "write_atomically"]
 
 T = TypeVar("T")
 
@@ -161,3 +164,37 @@ class PeriodicWrites:
         except Exception:
             self.failed()
             self.log.exception("%s: final write failed", self.what)
+
+
+def set_aside(path: Path, kind: str) -> Path:
+    """Move a file that cannot be used out of the way: ``NAME.KIND-YYYYmmddTHHMMSS``."""
+    dest = path.with_name(f"{path.name}.{kind}-{time.strftime('%Y%m%dT%H%M%S')}")
+    os.replace(path, dest)
+    return dest
+
+
+def remove_temporaries(p: Path) -> bool:
+    """Remove the temporary files a write killed half-way left beside ``p``
+    (:func:`write_atomically`'s); whether ``p`` exists."""
+    for tmp in p.parent.glob(f".{p.name}.tmp-*"):
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+    return p.exists()
+
+
+_FIRST_DAY, _LAST_DAY = dt.date(1970, 1, 1).toordinal(), dt.date(9999, 12, 31).toordinal()
+
+
+def check_days(days: list[Any], where: str) -> None:
+    """A file's list of days: ``YYYY-MM-DD`` texts, 1970 .. 9999, each after the one before
+    (ValueError naming the first that is not)."""
+    last = _FIRST_DAY - 1
+    for k, day in enumerate(days):
+        try:
+            ordinal = dt.date.fromisoformat(day).toordinal() if isinstance(day, str) \
+                and len(day) == 10 else None
+        except ValueError:
+            ordinal = None
+        if ordinal is None or not last < ordinal <= _LAST_DAY:
+            raise ValueError(f"{where}.days[{k}]: not a date after the one before")
+        last = ordinal

@@ -31,12 +31,14 @@ from ..config import Config
 from ..config.checks import ANALYSIS_BATCH_LOOPS
 from ..config.plugins import output_plugin
 from ..core.findings import FindingsBook
+from ..core.sitecal import SiteBook
 from ..core.store import ResultStore
 from ..inputs.base import Source
 from ..outputs.base import Binding, Sink
 from ..outputs.prometheus import GatewayMetrics
 from ..wire.results import moved_indices, moved_line
-from .findings import load_findings, observe, read_configured, reload_findings
+from .crewlist import CrewList
+from .findings import load_findings, observe, read_configured
 from .logs import clip
 from .poller import Clocks, DevicePoller
 from .reload import (
@@ -57,11 +59,10 @@ log = logging.getLogger("gateway.app")
 class Gateway:
     """One running gateway for ``config``; see the module docstring.
 
-    ``persist`` adds the state file and the verdict history (``stiction-gateway run`` sets
-    it); ``outputs``
-    names further outputs of :data:`gateway.config.plugins.OUTPUTS` (e.g. ``memory``).
-    ``executor`` replaces the analysis process pool (tests: one thread); ``clocks`` the
-    pollers' clocks."""
+    ``persist`` adds the state file, the verdict history and the site calibration's file
+    (``stiction-gateway run`` sets it); ``outputs`` names further outputs of
+    :data:`gateway.config.plugins.OUTPUTS` (e.g. ``memory``). ``executor`` replaces the
+    analysis process pool (tests: one thread); ``clocks`` the pollers' clocks."""
 
     def __init__(self, config: Config, *, registry: CollectorRegistry | None = None,
                  analyze: str = DEFAULT_ANALYZE, serve_http: bool = True,
@@ -75,12 +76,12 @@ class Gateway:
         self._phase_ref: float | None = None
         self.runtime = build_runtime(config, wall=self._wall(), metrics=self.metrics,
                                      clocks=clocks)
-        # the engineer's findings and the history of the verdicts they are compared with
-        self.findings = observe(self.runtime.store, FindingsBook())
+        self.findings = observe(self.runtime.store, FindingsBook())  # + verdict history
+        self.crew = CrewList(SiteBook(config.analysis), self.findings, wall=self._wall)
         self.sinks = create_sinks(sink_names(persist, outputs), self.runtime.binding(),
-                                  registry=self.registry,
-                                  metrics=self.metrics, serve_http=serve_http,
-                                  findings=self.findings)
+                                  registry=self.registry, metrics=self.metrics,
+                                  serve_http=serve_http, findings=self.findings,
+                                  site=self.crew.site)
         g = config.gateway
         self.scheduler = AnalysisScheduler(
             self.runtime.groups, self.runtime.store,
@@ -88,7 +89,7 @@ class Gateway:
             batch_size=batch_size, analyze=analyze, executor=executor,
             on_duration=self.metrics.analysis_duration.observe, plant=config.plant,
             hysteresis=config.hysteresis, on_verdict=self.metrics.count_verdict,
-            time_scale=g.time_scale)
+            time_scale=g.time_scale, hooks=self.crew)
         self.reloads = 0
         self.polling = asyncio.Event()  # set once every poller has completed a tick
         self._polls = PollTasks()
@@ -144,6 +145,7 @@ class Gateway:
                 await sink.bind(binding)
                 await sink.start()
             await self.scheduler.start()
+            await self.crew.start(self.runtime.store, self.config)  # restored: the list
         except BaseException:
             await self._close()
             raise
@@ -206,7 +208,7 @@ class Gateway:
                 log.exception("reload of %s failed unexpectedly", source)
                 return False
             finally:  # the findings of the config now in force, reloaded or kept
-                await reload_findings(self.config, self.findings)
+                await self.crew.reload(self.runtime.store, self.config)
             self.reloads += 1
             return True
 
@@ -259,8 +261,8 @@ class Gateway:
 def sink_names(persist: bool, outputs: Sequence[str]) -> list[str]:
     """The outputs of a gateway: with ``persist`` the verdict history and the state file
     (the history first: the state file's restored assessments extend it)."""
-    return [*(["verdicts", "statefile"] if persist else []), "modbus_server", "prometheus",
-            *outputs]
+    return [*(["verdicts", "sitecal", "statefile"] if persist else []), "modbus_server",
+            "prometheus", *outputs]
 
 
 def create_sinks(names: Sequence[str], binding: Binding, **options: Any) -> dict[str, Sink]:

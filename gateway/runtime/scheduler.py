@@ -38,7 +38,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
-from typing import Any
+from typing import Any, Protocol
 
 from stiction import Assessment
 
@@ -51,17 +51,17 @@ from ..core.store import LoopResult, ResultStore
 from ..core.windows import LoopGroup
 from .logs import clip, sizes_text
 
-__all__ = ["DEFAULT_ANALYZE", "WORKER_NICE", "AnalysisScheduler", "die_with_parent",
-           "log_verdict_change"]
+__all__ = ["DEFAULT_ANALYZE", "WORKER_NICE", "AnalysisScheduler", "RoundHooks",
+           "die_with_parent", "log_verdict_change"]
 
 SINGLE_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 """Set to 1 for the analysis workers unless already set (see
 :meth:`AnalysisScheduler.start`)."""
 
 log = logging.getLogger("gateway.analysis")
-Held = tuple[Assessment, float, float, int, float, int]
+Held = tuple[Assessment, float, float, int, float, int, float | None]
 """A round's result of one loop until the plant step: (assessment, t, window fill, samples,
-judged, hold)."""
+judged, hold, the PV's swing)."""
 plant_log = logging.getLogger("gateway.plant")
 
 WORKER_NICE = 10
@@ -112,6 +112,16 @@ def _warm(path: str) -> int:
     return os.getpid()
 
 
+class RoundHooks(Protocol):
+    """What a round calls besides the analysis (:class:`gateway.runtime.crewlist.CrewList`):
+    each loop's assessment under the site's calibration, before the hysteresis (name,
+    assessment, wall time); the list worst first after the round."""
+
+    def calibrate(self, loop: str, a: Assessment, t: float) -> Assessment: ...
+
+    def after_round(self, store: ResultStore) -> None: ...
+
+
 class AnalysisScheduler:
     """Runs analysis rounds over ``groups`` and writes the results into ``store``.
 
@@ -126,7 +136,7 @@ class AnalysisScheduler:
                  plant: PlantSettings | None = None,
                  hysteresis: HysteresisSettings | None = None,
                  on_verdict: Callable[[str], None] | None = None,
-                 time_scale: float = 1.0) -> None:
+                 time_scale: float = 1.0, hooks: RoundHooks | None = None) -> None:
         self.store = store
         self.time_scale = time_scale
         self.groups = list(groups)  # (sets the windows' lengths: the longest hold)
@@ -145,6 +155,7 @@ class AnalysisScheduler:
         self.last_plant_s = 0.0
         self._executor = executor
         self._pool: Executor | None = None
+        self.hooks = hooks  # the site's calibration and the list worst first (crewlist)
 
     @property
     def groups(self) -> list[LoopGroup]:
@@ -241,18 +252,19 @@ class AnalysisScheduler:
             finally:
                 sem.release()
             t = now()
-            for index, analysed, fill, samples, dur in results:
+            for index, raw, fill, samples, dur, swing in results:
                 shown, name = store.results[index], store.loops[index]
+                analysed = raw if self.hooks is None else self.hooks.calibrate(name, raw, t)
                 assessment = self.verdicts.publish(
                     name, analysed, t, shown=None if shown is None else shown.assessment,
                     shown_at=None if shown is None else shown.judged_at,
                     max_hold_s=self._windows_s.get(name))
                 judged, hold = self.verdicts.published(name, t)
                 if held is not None:  # published after the plant step
-                    held[index] = (assessment, t, fill, samples, judged, hold)
+                    held[index] = (assessment, t, fill, samples, judged, hold, swing)
                 else:
                     publish(store, index, assessment, t=t, fill=fill, samples=samples,
-                            judged=judged, hold=hold)
+                            judged=judged, hold=hold, pv_swing=swing)
                 if self.on_duration is not None:
                     self.on_duration(dur)
             done += len(results)
@@ -268,11 +280,13 @@ class AnalysisScheduler:
         await asyncio.gather(*tasks)
         if held is not None:
             applied = await self._plant_step(store, groups, held)
-            for index, (assessment, t, fill, samples, judged, hold) in held.items():
+            for index, (assessment, t, fill, samples, judged, hold, swing) in held.items():
                 publish(store, index, applied.get(index, assessment), t=t, fill=fill,
-                        samples=samples, judged=judged, hold=hold)
+                        samples=samples, judged=judged, hold=hold, pv_swing=swing)
         elif self.tracker.groups:  # turned off by a reload: the groups end
             self._set_plant(store, [])
+        if self.hooks is not None:
+            self.hooks.after_round(store)
         self.rounds += 1
         self.last_round_s = time.perf_counter() - t0
         log.debug("analysis round %d: %d loops in %.2f s", self.rounds, done, self.last_round_s)
@@ -310,19 +324,25 @@ class AnalysisScheduler:
 
 
 def publish(store: ResultStore, index: int, assessment: Assessment, *, t: float,
-            fill: float, samples: int, judged: float | None = None, hold: int = 0) -> None:
+            fill: float, samples: int, judged: float | None = None, hold: int = 0,
+            pv_swing: float | None = None) -> None:
     """One loop's result into the store, its verdict change logged (not while its device is
     down: the device's line says why)."""
     before = store.results[index]
     store.set_result(index, assessment, t=t, window_fill=fill, samples=samples,
-                     judged=judged, hold=hold)
+                     judged=judged, hold=hold, pv_swing=pv_swing)
     if not (store.stale[index] and store.down[index]):
         log_verdict_change(store.loops[index], before, assessment)
 
 
 def log_verdict_change(loop: str, before: LoopResult | None, after: Assessment) -> None:
     """One INFO line when a loop's verdict changes (the first assessment too), with the
-    reason: the journal tells each loop's story."""
+    reason: the journal tells each loop's story; a WARNING when the valve's position given
+    stops being used (:attr:`stiction.Assessment.position_use`)."""
+    used = before.assessment.position_use if before is not None else None
+    if after.position_use not in (None, "used") and after.position_use != used:
+        log.warning("loop %s: its valve position is not used (%s): OP and PV decide; see "
+                    "its reason", loop, after.position_use.replace("_", " "))
     was = str(before.assessment.verdict) if before is not None else "none"
     if was == str(after.verdict):
         return

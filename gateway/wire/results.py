@@ -7,7 +7,7 @@ offset and how it is encoded; :func:`result_block` fills a block, :func:`decode_
 reads one back, :data:`VERDICT_CODES` numbers the verdicts, and
 :func:`overlapping_blocks` finds blocks that share registers (the config loader refuses
 them). Adding a field is one :class:`Field` line in :data:`EXTENSION` (at the next free
-offset, +25 on; the 20 registers of :data:`LAYOUT` are full) and one entry in
+offset, +29 on; the 20 registers of :data:`LAYOUT` are full) and one entry in
 :func:`block_values`.
 """
 
@@ -166,9 +166,25 @@ EXTENSION: tuple[Field, ...] = (
     Field("source_address", 24, "uint16", "register",
           "the group's source loop's result_address, the first register of its block; "
           "65535 in no group, or when no loop read is the source"),
+    Field("rank", 25, "uint16", "place",
+          "the loop's place in the list of valves to check, worst first: 1 the worst, by "
+          "its suspicion (+26); 0 without an assessment"),
+    Field("suspicion", 26, "float32", "score",
+          "the loop's suspicion: confidence of stiction (+16) x what its cycle costs (the "
+          "PV amplitude, where the PV has a range) x its priority; 0 for a loop not judged "
+          "on a cycle; NaN without an assessment"),
+    Field("position_use", 28, "uint16", "code",
+          "the valve's position in the latest assessment: 0 no position given (none "
+          "configured, or no assessment), 1 used (its travel decided), 2 could not tell "
+          "(too gappy or too few reversals: OP and PV decided), 3 not a position (it moved "
+          "against OP, in another scale, late, or held while PV moved: OP and PV decided, "
+          "the reason says why)"),
 )
-"""The extended block's fields after the 20 registers (``block_registers: 32``); +25..+31
+"""The extended block's fields after the 20 registers (``block_registers: 32``); +29..+31
 are reserved (read 0) for the fields to come, which take the next free offsets."""
+
+POSITION_USE_CODES = {None: 0, "used": 1, "could_not_tell": 2, "not_a_position": 3}
+"""Register +28's code of :attr:`stiction.Assessment.position_use`."""
 
 
 def layout(size: int = RESULT_BLOCK_SIZE) -> tuple[Field, ...]:
@@ -213,10 +229,14 @@ def _num(x: float | None) -> float:
 def block_values(result: LoopResultLike | None, code: int,
                  plant: tuple[int, int, int] = (0, 0, 0),
                  source: tuple[int, int] = (0, NO_SOURCE_ADDRESS),
-                 size: int = RESULT_BLOCK_SIZE) -> dict[str, float]:
-    """The field values of a block of ``size`` registers (:func:`_values`)."""
+                 size: int = RESULT_BLOCK_SIZE, *,
+                 rank: tuple[int, float] = (0, math.nan)) -> dict[str, float]:
+    """The field values of a block of ``size`` registers (:func:`_values`; ``rank``: the
+    loop's place in the list worst first and its suspicion)."""
     names = {f.name for f in layout(size)}
-    return {k: v for k, v in _values(result, code, plant, source).items() if k in names}
+    values = _values(result, code, plant, source)
+    values["rank"], values["suspicion"] = float(rank[0]), rank[1]
+    return {k: v for k, v in values.items() if k in names}
 
 
 def _values(result: LoopResultLike | None, code: int, plant: tuple[int, int, int],
@@ -244,16 +264,18 @@ def _values(result: LoopResultLike | None, code: int, plant: tuple[int, int, int
             "timestamp": max(0, int(result.t)),
             "window_fill": result.window_fill, "confidence": _num(a.confidence),
             "judged": max(0, int(getattr(result, "judged_at", result.t))),
-            "hold": int(getattr(result, "hold", 0)), **plant_values}
+            "hold": int(getattr(result, "hold", 0)),
+            "position_use": POSITION_USE_CODES.get(a.position_use, 0), **plant_values}
 
 
 def result_block(result: LoopResultLike | None, *, code: int, word_order: str = "big",
                  plant: tuple[int, int, int] = (0, 0, 0), size: int = RESULT_BLOCK_SIZE,
-                 source: tuple[int, int] = (0, NO_SOURCE_ADDRESS)) -> NDArray[np.uint16]:
-    """The ``size`` registers of one loop's block (``plant``, ``source``: see
+                 source: tuple[int, int] = (0, NO_SOURCE_ADDRESS),
+                 rank: tuple[int, float] = (0, math.nan)) -> NDArray[np.uint16]:
+    """The ``size`` registers of one loop's block (``plant``, ``source``, ``rank``: see
     :func:`block_values`)."""
     block = np.zeros(size, dtype=np.uint16)
-    values = block_values(result, code, plant, source, size)
+    values = block_values(result, code, plant, source, size, rank=rank)
     for f in layout(size):
         if f.name not in values:
             continue

@@ -13,7 +13,7 @@ from typing import Any
 
 from .._assessment import Assessment, Verdict
 from ..diagnosis.reasons import WHAT
-from . import batch, historian
+from . import batch, historian, ranking
 from ._common import Subparsers, UsageError
 from .every import duration as every_duration
 from .loop import SP_COLUMNS, LoopOptions, analyze_file, bursts, view
@@ -95,11 +95,13 @@ def add_analyze(sub: Subparsers) -> None:
                    "'error' column for a file not analysed")
     p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to "
                    "FILE.png; several files: a folder, one PNG per file (its name's stem)")
+    ranking.add_options(p)  # --sort, --top, --findings, --report (several files)
     p.set_defaults(handler=_cmd_analyze)
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    if args.manifest is not None or len(args.files) > 1 or args.every is not None:
+    if (args.manifest is not None or len(args.files) > 1 or args.report is not None
+            or args.every is not None):
         return batch.run(args)
     if not args.files:
         raise UsageError("analyze: give a CSV file, several, or --manifest LIST")

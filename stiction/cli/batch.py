@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from .._errors import ParameterError, StictionError
+from . import ranking
 from ._common import UsageError, param_option, pyplot
 from .every import every
 from .loop import LoopOptions, analyze_file
@@ -58,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
         notes += said if len(loops) == 1 else []
     if bar is not None:
         bar.clear()
+    rows, said = ranking.finish(rows, loops, args)  # worst first, --findings, --report
+    ranking.warn(said)
     if args.json:
         print(json.dumps([r.to_dict() for r in rows]))
     else:
@@ -66,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         print("\n".join([*legend(rows), *(f"warning: {n}" for n in notes)]))
     if args.csv is not None:
         write_csv(args.csv, rows)
-    for done in (args.plot, args.csv):
+    for done in (args.plot, args.csv, args.report):
         if done is not None and not args.json:
             print(f"wrote {done}")
     failed = sum(r.error is not None for r in rows)
@@ -99,7 +102,7 @@ def _one(loop: Loop, plot: Path | None, length: float | None) -> tuple[list[Row]
     except Exception as exc:  # a bug on one file: the unit's other loops are still analysed
         return [Row(loop.label, error=f"internal error ({type(exc).__name__}: {exc}); please "
                                       "report it with this file")], []
-    return [Row(loop.label, got.shown)], []
+    return [Row(loop.label, got.shown, analysed=got)], []
 
 
 def _plot_names(folder: Path, loops: Sequence[Loop]) -> list[Path]:

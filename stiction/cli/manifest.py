@@ -27,7 +27,7 @@ from .table import read_text
 __all__ = ["COLUMNS", "Loop", "read_manifest"]
 
 COLUMNS = ("file", "ts", "process", "op_lo", "op_hi", "kp", "delay", "op", "pv", "position",
-           "time", "sp", "tz", "decimal")
+           "time", "sp", "tz", "decimal", "loop", "priority")
 """The columns a manifest may have (any case, any order); ``file`` is required."""
 
 
@@ -40,6 +40,8 @@ class Loop:
     path: Path
     options: LoopOptions
     error: str | None = None
+    name: str = ""  # the loop (the ``loop`` column; "": the file's name), for --findings
+    priority: float = 1.0  # its weight in the list worst first (:mod:`.ranking`)
 
 
 def read_manifest(path: Path, base: LoopOptions) -> list[Loop]:
@@ -83,9 +85,11 @@ def _loop(manifest: Path, line: int, names: list[str], row: list[str], base: Loo
     path = manifest.parent / cells["file"]
     try:
         options = dataclasses.replace(base, **_changes(cells))
+        priority = _number(cells, "priority", lambda v: v > 0, "> 0") \
+            if "priority" in cells else 1.0
     except ValueError as exc:
-        return Loop(str(path), path, base, f"{where}: {exc}")
-    return Loop(str(path), path, options)
+        return Loop(str(path), path, base, f"{where}: {exc}", cells.get("loop", ""))
+    return Loop(str(path), path, options, name=cells.get("loop", ""), priority=priority)
 
 
 def _changes(cells: dict[str, str]) -> dict[str, Any]:

@@ -25,6 +25,9 @@ class Row:
     shown: Mapping[str, Any] | None = None
     error: str | None = None
     window: tuple[str, str] | None = None
+    analysed: Any = dataclasses.field(default=None, repr=False, compare=False)
+    """The file's analysis (:class:`.loop.Analysed`), for the ranking's calibration and the
+    meeting's page."""
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON array's object: ``file`` (and ``from``, ``to``) and the single-file
@@ -77,8 +80,9 @@ def duration(seconds: float) -> str:
     return text
 
 
-def _cells(row: Row, files: bool) -> list[str]:
-    lead = ([str(row.file)] if files else []) + (list(row.window) if row.window else [])
+def _cells(row: Row, files: bool, ranked: bool) -> list[str]:
+    rank = [str((row.shown or {}).get("rank", "-"))] if ranked else []
+    lead = rank + ([str(row.file)] if files else []) + (list(row.window) if row.window else [])
     if row.shown is None:
         error = row.error or ""
         prefix = f"{row.file}: "
@@ -100,12 +104,15 @@ def table(rows: Sequence[Row], *, width: int | None = None) -> str:
     """One line per loop (per window with ``--every``: its first and last stamps) under a
     header, columns aligned, the reason in short (:func:`short_reason`); on a terminal
     (``width``) the reason wraps onto lines of its own under its column, else it runs on.
-    The file is left out where every row is a window of one file."""
+    The file is left out where every row is a window of one file; a batch ranked worst first
+    (:mod:`.ranking`) has its rank in a first column ``#``."""
     windows = any(r.window is not None for r in rows)
     files = not windows or len({str(r.file) for r in rows}) > 1
-    head = [*(["file"] if files else []), *(["from", "to"] if windows else []),
+    ranked = any(r.shown is not None and "rank" in r.shown for r in rows)
+    head = [*(["#"] if ranked else []), *(["file"] if files else []),
+            *(["from", "to"] if windows else []),
             "verdict", "conf", "fd", "fs", "unit", "period", "reason"]
-    lines = [head, *(_cells(r, files) for r in rows)]
+    lines = [head, *(_cells(r, files, ranked) for r in rows)]
     widths = [max(len(line[j]) for line in lines) for j in range(len(head) - 1)]
     lead = len(head) - 7  # the file and the window's columns
     left = {*range(lead + 1), lead + 4}

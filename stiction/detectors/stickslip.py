@@ -36,7 +36,7 @@ sampling or a valve that slips in two steps, the slip spans more than ``M`` samp
 Thresholds are physical fractions chosen once; ``OP_NOISE``, ``MONOTONE``, the OP-step
 rule, the second scale and the stuck phase from OP's turn were checked against the plant
 records of ``../shared/data/plant-stictiongpt``
-(see ``bench/real_data.py``), so they are not independent of that data.
+(see ``bench/accuracy/real_data.py``), so they are not independent of that data.
 """
 
 from __future__ import annotations

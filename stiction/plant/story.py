@@ -11,17 +11,37 @@ for a sticky valve against its own window, a step test in manual tells the two a
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import Protocol
 
 from .._assessment import Assessment, Verdict
 from .decide import Decision, IndicatorEvidence
 from .nonlinearity import NLI_NONLINEAR
 from .source import SOURCE_SCORE, MemberEvidence
 
-if TYPE_CHECKING:
-    from .analysis import Group
-
 __all__ = ["group_reason", "kept", "propagated"]
+
+
+class Group(Protocol):
+    """What a story reads of :class:`stiction.plant.analysis.Group` (a protocol, so this
+    module need not import the one that imports it)."""
+
+    @property
+    def number(self) -> int: ...
+    @property
+    def period_s(self) -> float: ...
+    @property
+    def source(self) -> str | None: ...
+    @property
+    def named_by(self) -> tuple[str, ...]: ...
+    @property
+    def entry(self) -> str | None: ...
+    @property
+    def demoted(self) -> Mapping[str, str]: ...
+    @property
+    def kept(self) -> Mapping[str, str]: ...
+    @property
+    def loops(self) -> tuple[str, ...]: ...
 
 
 def _ind(ind: IndicatorEvidence) -> str:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from bench._scale import min_requests, run_scale
+from bench.speed._scale import min_requests, run_scale
 
 
 def test_min_requests_covers_used_registers_only() -> None:

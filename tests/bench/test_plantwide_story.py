@@ -1,6 +1,6 @@
 """One story per loop over the plant-wide benchmark's runs (issue 29): no loop is a
 ``follower`` and ``stiction`` at once, in the plant view, ``stiction plant``'s JSON and
-text (:func:`bench.plantwide.stories`, which the benchmark counts for every run it makes)
+text (:func:`bench.accuracy.plantwide.stories`, which the benchmark counts for every run it makes)
 and in the gateway's registers and metrics.
 
 The runs: one plant of every kind the benchmark draws (a seed it does not use), at the
@@ -15,8 +15,8 @@ import functools
 import pytest
 from prometheus_client import CollectorRegistry
 
-from bench._plantwide_data import cascades, processes, resampled
-from bench.plantwide import stories
+from bench.accuracy._plantwide_data import cascades, processes, resampled
+from bench.accuracy.plantwide import stories
 from gateway.core.plant import PlantTracker
 from gateway.core.store import ResultStore
 from gateway.outputs.prometheus import StoreCollector

@@ -41,7 +41,10 @@ def test_analyze_batch_fill_bad_data_and_the_analysis() -> None:
         job(swing, np.full(100, N), index=2),
         job(swing, np.full(100, G), index=3, size=100),
     ])
-    (i0, a0, fill0, n0, _), (i1, a1, _, _, _), (i2, a2, fill2, n2, _), (_, a3, _, _, _) = out
+    (i0, a0, fill0, n0, _, swing0), (i1, a1, *_), (i2, a2, fill2, n2, _, swing2), \
+        (_, a3, *_) = out
+    # the PV's swing over the samples used (the list worst first): half its 2-98 % range
+    assert swing0 == 0.0 and swing2 is None  # (PV stands at 20; no samples)
     # half the window, one cycle of the 100 s the fake analysis reports: not yet judged
     assert (i0, a0.verdict, fill0, n0) == (0, Verdict.WARMING_UP, 0.5, 100)
     assert "its cycle of 100 s shows in 2.6 cycles" in a0.reason
@@ -52,7 +55,7 @@ def test_analyze_batch_fill_bad_data_and_the_analysis() -> None:
 
 
 def test_a_failing_analysis_is_bad_data_not_a_crash() -> None:
-    (_, a, _, _, _), = analyze_batch("test_jobs:_raises",
+    (_, a, _, _, _, _), = analyze_batch("test_jobs:_raises",
                                    [job(np.ones(40), np.full(40, G), size=40)])
     assert a.verdict == Verdict.BAD_DATA
     assert a.reason == "analysis failed: ZeroDivisionError: no"
@@ -95,7 +98,7 @@ def test_a_window_still_filling_is_warming_up_never_not_oscillating() -> None:
     (Issue 31: the wait is the loop's own time scale, estimated from the window.)"""
     op, pv = _sim("disturbance", 600)
     assert analyze(op, pv, ts=1.0).verdict == Verdict.NOT_OSCILLATING
-    (_, a, _, n, _), = analyze_batch("stiction:analyze",
+    (_, a, _, n, _, _), = analyze_batch("stiction:analyze",
                                      [_real_job(op, pv, 7200, "self-regulating")])
     assert (a.verdict, n) == (Verdict.WARMING_UP, 600)
     assert a.reason == ("warming up: window fill 8%, 10 min of 2 h analysed; OP and PV move on "
@@ -104,7 +107,7 @@ def test_a_window_still_filling_is_warming_up_never_not_oscillating() -> None:
     assert len(a.reason) <= 200  # the journal's verdict-change line keeps it whole
     # a sticky valve's full window: stiction, as before
     op, pv = _sim("table5-case2", 4000)
-    (_, a, _, _, _), = analyze_batch("stiction:analyze",
+    (_, a, _, _, _, _), = analyze_batch("stiction:analyze",
                                      [_real_job(op, pv, 4000, "integrating")])
     assert a.verdict == Verdict.STICTION
 
@@ -118,7 +121,7 @@ def test_a_short_window_after_a_restart_is_warming_up_not_a_verdict() -> None:
     op, pv = _sim("healthy", 4200)
     for start, length in ((1000, 9), (1200, 33), (4125, 33), (1500, 45), (2000, 60)):
         seg = slice(start, start + length)
-        (_, a, _, n, _), = analyze_batch("stiction:analyze", [
+        (_, a, _, n, _, _), = analyze_batch("stiction:analyze", [
             _real_job(op[seg], pv[seg], 1800, "self-regulating")])
         assert (a.verdict, n) == (Verdict.WARMING_UP, length), a.reason
         assert ("a verdict needs 64 samples: judged in " in a.reason) == (length < 64)
@@ -127,6 +130,6 @@ def test_a_short_window_after_a_restart_is_warming_up_not_a_verdict() -> None:
 
 def test_a_full_window_without_oscillation_is_not_oscillating() -> None:
     op, pv = _sim("healthy", 3600)
-    (_, a, _, _, _), = analyze_batch("stiction:analyze",
+    (_, a, _, _, _, _), = analyze_batch("stiction:analyze",
                                      [_real_job(op, pv, 3600, "self-regulating")])
     assert a.verdict == Verdict.NOT_OSCILLATING

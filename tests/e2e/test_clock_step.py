@@ -1,6 +1,6 @@
 """Issue 31, finding 1, against real processes: ``stiction-gateway run`` restarted with its
 wall clock stepped back an hour (libfaketime preloaded), across a clean stop and across a
-SIGKILL (the scenario is bench/_clock.py's, which ``python -m bench hostile`` also runs on
+SIGKILL (the scenario is bench/attacks/_clock.py's, which ``python -m bench hostile`` also runs on
 the baseline). The downtime is a gap in the window, never joined; the sequence numbers
 SCADA reads never go backwards. Main (3dfa8c7) restored both with no gap, and after the
 kill SCADA read 10 where it had read 13 before.
@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from deploy_support import require
 
-from bench._clock import clock_case, faketime, summary
+from bench.attacks._clock import clock_case, faketime, summary
 from gateway.outputs.statefile.restore import UNKNOWN_DOWNTIME_ROWS
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(150)]

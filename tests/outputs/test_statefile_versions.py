@@ -77,12 +77,13 @@ def test_version_1_is_written_where_nothing_of_version_2_is_in_it(tmp_path: Path
     old_header, _ = read_state(V1)  # what the previous release wrote has every key we write
     ours, theirs = _keys(header), _keys(old_header)
     # (what is added is what the previous release ignores: it reads its own keys only)
-    assert set(ours) - set(theirs) <= {"order"}
+    assert set(ours) - set(theirs) <= {"order", "plant"}
     assert set(ours["banks"][0]) <= set(theirs["banks"][0])
     entry = header["banks"][0]["loops"][0]
     assert set(entry) <= set(theirs["banks"][0]["loops"][0])
     assert set(entry["result"]) <= {"assessment", "seq", "t", "window_fill", "samples",
-                                    "judged", "hold"}  # (the old reader ignores extra keys)
+                                    "judged", "hold", "pv_swing", "since"}  # (the old reader
+        # ignores extra keys)
     assert set(entry["result"]["assessment"]) <= V1_ASSESSMENT
     header2, arrays2 = read_state(with_position)
     assert header2["version"] == 2 and "b0_pos" in arrays2

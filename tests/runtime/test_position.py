@@ -6,6 +6,7 @@ whose position is BAD keeps OP and PV's diagnosis; a loop without one is as befo
 from __future__ import annotations
 
 import asyncio
+import logging
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from valve_loops import run_loops
 
 from gateway.config import parse_config
 from gateway.core.points import Quality
+from gateway.runtime.scheduler import log_verdict_change
 from gateway.wire.results import VERDICT_CODES, decode_block
 from stiction import Verdict
 from stiction.diagnosis.travel import BY_OP_PV, BY_TRAVEL, MEASURED, NOT_USED
@@ -26,13 +28,17 @@ N = 1500
 def harness() -> Harness:
     (r,) = run_loops(KanoValve(0.05, 0.01), 1, samples=N + 500, pv_noise=0.05,
                      position_noise=0.05)
-    rows = np.column_stack((r.op, r.pv, r.position, np.full(N, np.nan), r.op, r.pv))
+    rows = np.column_stack((r.op, r.pv, r.position, np.full(N, np.nan), r.op, r.pv,
+                            100.0 - r.position))  # D: a position wired inverted
     devices = [{"name": "plc", "protocol": "memory", "poll_interval_s": 1.0, "timeout_s": 1.0,
                 "values": rows.tolist()}]
     loops = [mloop("A", "plc", 0, 0, window_s=N, op_range=[0, 100], position={"column": 2}),
-             mloop("B", "plc", 4, 20, window_s=N, op_range=[0, 100]),
-             mloop("C", "plc", 4, 40, window_s=N, op_range=[0, 100], position={"column": 3})]
-    h = Harness(parse_config(mconfig(devices, loops), "t"))
+             mloop("B", "plc", 4, 32, window_s=N, op_range=[0, 100]),
+             mloop("C", "plc", 4, 64, window_s=N, op_range=[0, 100], position={"column": 3}),
+             mloop("D", "plc", 0, 96, window_s=N, op_range=[0, 100], position={"column": 6})]
+    raw = mconfig(devices, loops)
+    raw["modbus_server"]["block_registers"] = 32  # the extended block: +28 position use
+    h = Harness(parse_config(raw, "t"))
     asyncio.run(h.tick(N))
     h.analyse("stiction:analyze")
     return h
@@ -72,6 +78,25 @@ def test_a_bad_position_keeps_the_op_pv_diagnosis(harness: Harness) -> None:
     assert c.position_use == "could_not_tell" and b.position_use is None
     assert next(e.note for e in c.evidence if e.test == "travel").startswith(BY_OP_PV)
     assert all(e.test != "travel" for e in b.evidence)
+
+
+def test_what_became_of_the_position_is_in_a_register_a_metric_and_the_journal(
+        harness: Harness, caplog: pytest.LogCaptureFixture) -> None:
+    """Issue 35: a position that is not used shows in register +28, in the metric
+    stiction_loop_position_use and in a journal line, not only in the reason."""
+    uses = {n: _assessment(harness, n).position_use for n in "ABCD"}
+    assert uses == {"A": "used", "B": None, "C": "could_not_tell", "D": "not_a_position"}
+    assert [decode_block(harness.block(n))["position_use"] for n in "ABCD"] == [1, 0, 2, 3]
+    for n, use in uses.items():
+        for u in ("used", "could_not_tell", "not_a_position"):
+            want = None if use is None else float(u == use)
+            assert harness.metric("stiction_loop_position_use", loop=n, use=u) == want
+    with caplog.at_level(logging.WARNING, logger="gateway"):
+        log_verdict_change("D", None, _assessment(harness, "D"))
+        log_verdict_change("A", None, _assessment(harness, "A"))
+    said = [r.getMessage() for r in caplog.records if "position" in r.getMessage()]
+    assert said == ["loop D: its valve position is not used (not a position): OP and PV "
+                    "decide; see its reason"]
 
 
 def test_the_window_holds_the_position(harness: Harness) -> None:

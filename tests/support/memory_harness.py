@@ -79,7 +79,7 @@ class Harness:
         """One analysis round, inline; the results are stamped with the fake wall time."""
         done = 0
         for batch in batches(self.runtime.groups, 64):
-            for index, assessment, fill, samples, _dur in analyze_batch(path, batch):
+            for index, assessment, fill, samples, _dur, _swing in analyze_batch(path, batch):
                 self.store.set_result(index, assessment, t=self.time.wall, window_fill=fill,
                                       samples=samples)
                 done += 1
@@ -91,8 +91,9 @@ class Harness:
 
     def block(self, loop: str) -> NDArray[np.uint16]:
         lc = self.config.loops[self.store.index[loop]]
+        size = self.config.modbus_server.block_registers
         return self.registers(self.results.unit_of(lc))[lc.result_address:
-                                                         lc.result_address + 20]
+                                                         lc.result_address + size]
 
     def metric(self, name: str, **labels: str) -> float | None:
         return self.registry.get_sample_value(name, labels)

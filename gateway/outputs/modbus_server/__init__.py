@@ -110,7 +110,8 @@ class ResultServer:
         self._image_of[i][a:a + self.size] = result_block(
             st.results[i], code=code, word_order=self.settings.word_order,
             plant=st.plant_registers(i), size=self.size,
-            source=self._block_of.get(source or "", (0, NO_SOURCE_ADDRESS)))
+            source=self._block_of.get(source or "", (0, NO_SOURCE_ADDRESS)),
+            rank=(int(st.rank[i]), float(st.suspicion[i])))
 
     async def prepare(self, config: Config) -> Swap | None:
         """Bind the new ``listen`` address, if it moved, before a reload swaps (OSError if

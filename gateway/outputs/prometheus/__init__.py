@@ -1,7 +1,8 @@
 """Prometheus output (the ``metrics`` config section): the per-loop series read from the
-result store at scrape time (:mod:`.collector`), the engineer's findings (:mod:`.findings`)
-and the gateway's own series (:mod:`.devices`), in one explicitly passed registry, served
-over HTTP by :mod:`.http` (asyncio, bounded connections, one rendering thread).
+result store at scrape time (:mod:`.collector`), the engineer's findings (:mod:`.findings`),
+the site's calibration of the confidence (:mod:`.site`) and the gateway's own series
+(:mod:`.devices`), in one explicitly passed registry, served over HTTP by :mod:`.http`
+(asyncio, bounded connections, one rendering thread).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from prometheus_client import CollectorRegistry, disable_created_metrics
 
 from ...config.model import Config
 from ...core.findings import FindingsBook
+from ...core.sitecal import SiteBook
 from ...wire.listener import ListenerStats
 from ..base import Binding, Swap
 from .collector import StoreCollector
@@ -19,6 +21,7 @@ from .devices import GatewayMetrics
 from .findings import FindingsCollector
 from .http import MetricsServer
 from .plant import PlantCollector
+from .site import SiteCollector
 
 __all__ = ["GatewayMetrics", "MetricsServer", "PrometheusSink", "StoreCollector",
            "create_sink"]
@@ -28,8 +31,9 @@ disable_created_metrics()  # type: ignore[no-untyped-call]  # no _created series
 
 def create_sink(binding: Binding, *, registry: CollectorRegistry, metrics: GatewayMetrics,
                 serve_http: bool = True, findings: FindingsBook | None = None,
-                **_: Any) -> PrometheusSink:
-    return PrometheusSink(registry, metrics, serve_http=serve_http, findings=findings)
+                site: SiteBook | None = None, **_: Any) -> PrometheusSink:
+    return PrometheusSink(registry, metrics, serve_http=serve_http, findings=findings,
+                          site=site)
 
 
 class PrometheusSink:
@@ -38,9 +42,11 @@ class PrometheusSink:
     new address first (:meth:`prepare`)."""
 
     def __init__(self, registry: CollectorRegistry, metrics: GatewayMetrics, *,
-                 serve_http: bool = True, findings: FindingsBook | None = None) -> None:
+                 serve_http: bool = True, findings: FindingsBook | None = None,
+                 site: SiteBook | None = None) -> None:
         self.registry = registry
         self.findings = findings
+        self.site = site
         self.metrics = metrics
         self.serve_http = serve_http
         self.collector: StoreCollector | None = None
@@ -86,6 +92,8 @@ class PrometheusSink:
                 lambda: self.collector.store if self.collector is not None else None))
             if self.findings is not None:
                 self.registry.register(FindingsCollector(self.findings))
+            if self.site is not None:
+                self.registry.register(SiteCollector(self.site))
         else:
             self.collector.store = binding.store
         self.metrics.set_identity(cfg.gateway.site, cfg.gateway.area)

@@ -28,12 +28,13 @@ from prometheus_client.utils import floatToGoString
 
 from ...core.findings import FindingsBook, FindingsView, day_start
 from ...core.store import NO_POSITION, ResultStore, StoreSnapshot
-from ...wire.results import VERDICT_CODES
+from ...wire.results import POSITION_USE_CODES, VERDICT_CODES
 
 __all__ = ["PREFIX", "StoreCollector"]
 
 PREFIX = "stiction"
 VERDICTS = tuple(str(v) for v in VERDICT_CODES)
+POSITION_USES = tuple(u for u in POSITION_USE_CODES if u is not None)
 Rows = list[tuple[tuple[str, ...], float]]
 _FAMILIES = (  # name, help; in the order they are yielded
     ("stiction_index", "Stiction index of the latest assessment (He et al. 2007)."),
@@ -70,11 +71,23 @@ _FAMILIES = (  # name, help; in the order they are yielded
     ("verdict_hold", "0: the verdict shown was judged by the latest round; 1: held back "
      "while a new one waits for its rounds (hysteresis); 2: held through warming up (at most "
      "the loop's window after it was judged)."),
+    ("suspicion", "The loop's suspicion: the confidence of stiction (the site's calibration "
+     "of it where the site has one) times what its cycle costs (sqrt of the PV amplitude in "
+     "% of span / 1 %, clipped to 1/4..4; 1 without a PV range) times its priority; 0 for a "
+     "loop that is not judged on a cycle."),
+    ("rank", "The loop's place in the list of valves to check, worst first (1 the worst)."),
+    ("verdict_since_timestamp_seconds", "Unix time since which the loop has had its "
+     "current verdict."),
+    ("position_use", "Loops whose assessment was given a valve position: 1 for what became "
+     "of it (used: its travel decided; could_not_tell: too gappy or too few reversals, OP "
+     "and PV decided; not_a_position: it did not show it is the valve's position, OP and PV "
+     "decided and the reason says why), 0 for the others."),
 )
 # the label names of each family, in the order the client library writes them (sorted);
 # its rows hold the values in this order
 _KEYS: dict[str, tuple[str, ...]] = {"verdict": ("loop", "verdict"), "plant_role": ("loop", "role"),
-                                     "finding": ("finding", "loop")}
+                                     "finding": ("finding", "loop"),
+                                     "position_use": ("loop", "use")}
 ROLES = ("source", "follower")
 _FAST_ESCAPINGS = (om.UNDERSCORES, om.ALLOWUTF8)  # legacy names stay as they are
 
@@ -131,7 +144,7 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
     families only with ``findings`` (every loop: its latest finding, or ``none``)."""
     out: list[Rows] = [[] for _ in _FAMILIES]
     (si, fd, fs, jump, period, verdict, ts, fill, conf, op, pv, group, role, found, when,
-     band, pos, pos_q, judged, hold) = out
+     band, pos, pos_q, judged, hold, suspicion, place, since, pos_use) = out
     roles = st.plant.roles
     latest = findings.latest if findings is not None else None
     for i, name in enumerate(st.loops):
@@ -157,8 +170,14 @@ def rows_of(st: StoreSnapshot, findings: FindingsView | None = None) -> list[Row
         a = res.assessment
         for rows, value in ((si, a.stiction_index), (period, a.period_s), (ts, res.t),
                             (fill, res.window_fill), (conf, a.confidence),
-                            (judged, res.judged_at), (hold, res.hold)):
+                            (judged, res.judged_at), (hold, res.hold), (since, res.since)):
             _add(rows, name, value)
+        if a.position_use is not None:
+            pos_use.extend(((name, u), 1.0 if u == a.position_use else 0.0)
+                           for u in POSITION_USES)
+        if st.rank is not None and st.suspicion is not None and st.rank[i] > 0:
+            _add(place, name, int(st.rank[i]))
+            _add(suspicion, name, float(st.suspicion[i]))
         size = a.sizes()
         if size is not None and size.of_span:  # % of span -> the base unit, 0-1
             _add(fd, name, size.fd / 100.0)

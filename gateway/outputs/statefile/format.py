@@ -8,8 +8,10 @@ object is ever unpickled) holding
 
 * ``header``: UTF-8 JSON as a uint8 array - ``format`` (``stiction-gateway-state``),
   ``version``, the wall and process time of the save, the loops in config order (``order``:
-  a restart with them in another order says register +19 numbers them anew), and per
-  window bank its sample time,
+  a restart with them in another order says register +19 numbers them anew), the plant
+  view's roles where there are groups (``plant``: per loop its group number, role and
+  source loop, for ``stiction-gateway report``; not restored), and per window bank its
+  sample time,
   its loops (name + window signature) and per loop the latest assessment
   (:meth:`stiction.Assessment.to_dict`) with its sequence number, time and window fill
   (and, read when present, when its verdict was judged and whether it was held: a held
@@ -107,6 +109,10 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                               "analysis_interval_wall_s": g.analysis_interval_s / g.time_scale,
                               "order": list(store.loops), "banks": []}
     arrays: dict[str, NDArray[Any]] = {}
+    plant = {name: [*store.plant.of(name)[:2], store.plant.of(name)[2] or ""]
+             for name in store.plant.roles if name in store.index}
+    if plant:  # who drives whom, for the report (issue 39; the release before ignores it)
+        header["plant"] = plant
     for k, b in enumerate(banks):
         # one copy of the windows (issue 38 item 4: a chronological copy and then a
         # transposed one held three times the windows at each write)
@@ -130,7 +136,8 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                     header["version"] = VERSION
                 entry["result"] = {"assessment": a, "seq": res.seq, "t": res.t,
                                    "window_fill": res.window_fill, "samples": res.samples,
-                                   "judged": res.judged_at, "hold": res.hold}
+                                   "judged": res.judged_at, "hold": res.hold,
+                                   **_listed(res)}
             loops.append(entry)
         header["banks"].append({"ts": b.ts, "size": b.bank.size, "loops": loops,
                                 **({} if pos is None else {"position": True})})
@@ -144,6 +151,13 @@ def snapshot(config: Config, banks: Sequence[LoopGroup], store: ResultStore, *,
                     entry["result"]["assessment"] = {k: v for k, v in a.items()
                                                      if k in V1_ASSESSMENT}
     return header, arrays
+
+
+def _listed(res: Any) -> dict[str, float]:
+    """What the list worst first reads of a result (issue 39; the release before ignores
+    both): the PV's swing and since when the loop has had its verdict, where known."""
+    return {k: float(v) for k, v in (("pv_swing", res.pv_swing), ("since", res.since))
+            if v is not None and np.isfinite(v)}
 
 
 def write_state(path: str | os.PathLike[str], header: Mapping[str, Any],

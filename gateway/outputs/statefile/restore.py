@@ -238,7 +238,8 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
                                     float(res["t"]), float(res["window_fill"]),
                                     int(res["samples"]),
                                     None if judged == float(res["t"]) else judged,
-                                    int(res.get("hold", 0)))
+                                    int(res.get("hold", 0)), _optional(res, "pv_swing"),
+                                    _optional(res, "since"))
                 except (KeyError, TypeError, ValueError) as exc:
                     log.warning("state file %s: loop %s: result unreadable (%s)", p,
                                 cfg.name, exc)
@@ -273,6 +274,12 @@ def _apply(report: RestoreReport, p: Path, header: dict[str, Any],
     log.info("state file %s: restored %d windows and %d assessments; %d loops start fresh; "
              "downtime gap %d samples", p, report.restored_windows, report.restored_results,
              len(report.fresh), report.gap_rows)
+
+
+def _optional(res: dict[str, Any], key: str) -> float | None:
+    """A result's optional number (issue 39: the list's; absent in older files)."""
+    value = res.get(key)
+    return None if value is None else float(value)
 
 
 def seq_bump(header: dict[str, Any], wall: float, interval_wall_s: float,

@@ -140,6 +140,10 @@ def _result(r: Any, where: str) -> None:
         _number(r["judged"], f"{where}.judged", 0.0, MAX_WALL)
     if "hold" in r:
         _integer(r["hold"], f"{where}.hold", 0, 2)
+    if "pv_swing" in r:  # since issue 39 (the release before ignores them)
+        _number(r["pv_swing"], f"{where}.pv_swing", 0.0, 1e15)
+    if "since" in r:
+        _number(r["since"], f"{where}.since", 0.0, MAX_WALL)
 
 
 def _loop(entry: Any, where: str) -> None:
@@ -164,6 +168,16 @@ def check_header(header: Any, max_loops: int) -> None:
     if "order" in h:  # the loops in config order (read when valid; older files lack it)
         for k, name in enumerate(_list(h["order"], "order", max_loops)):
             _text(name, f"order[{k}]", 1000)
+    if "plant" in h:  # per loop (group number, role, source): read by the report only
+        plant = _mapping(h["plant"], "plant")
+        if len(plant) > max_loops:
+            raise ValueError(f"plant: more than {max_loops:,} loops")
+        for name, v in plant.items():
+            if not isinstance(v, list) or len(v) != 3:
+                raise ValueError("plant: an entry that is not [group, role, source]")
+            _integer(v[0], f"plant[{name[:40]!r}].group", 0, 255)
+            _text(v[1], f"plant[{name[:40]!r}].role", 20)
+            _text(v[2], f"plant[{name[:40]!r}].source", 1000)
     banks = _list(h.get("banks"), "banks", max_loops)
     loops = 0
     for k, bank in enumerate(banks):

@@ -24,7 +24,7 @@ from typing import Any
 from ...config.findings import verdicts_path
 from ...config.reading import bounded
 from ...core.findings import FindingsBook
-from ..base import Binding, PeriodicWrites, in_thread
+from ..base import Binding, PeriodicWrites, in_thread, remove_temporaries
 from .history import HistoryError, read_history, set_aside, write_history
 
 __all__ = ["VerdictFile", "create_sink", "read_history"]
@@ -80,7 +80,7 @@ class VerdictFile:
         p = self.path
         max_loops = 2 * len(self.binding.config.loops) + 1000
         try:
-            if not bounded(_clean, p):
+            if not bounded(remove_temporaries, p):
                 return None
             return read_history(p, max_loops=max_loops)
         except OSError as exc:  # the folder did not answer in time
@@ -113,11 +113,3 @@ class VerdictFile:
 
     async def stop(self) -> None:
         await self.writes.stop()
-
-
-def _clean(p: Path) -> bool:
-    """Remove the temporary files of a write killed half-way; whether ``p`` exists."""
-    for tmp in p.parent.glob(f".{p.name}.tmp-*"):
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-    return p.exists()

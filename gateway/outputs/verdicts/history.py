@@ -19,21 +19,18 @@ starts its history afresh; it never stops on it.
 
 from __future__ import annotations
 
-import datetime as dt
 import errno
 import json
 import math
 import os
-import time
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any, BinaryIO
 
 from stiction import Verdict
 
 from ...config.reading import read_bytes
 from ...core.findings import MAX_ENTRIES, NOT_CALLS
-from ..base import write_atomically
+from ..base import check_days, set_aside, write_atomically
 
 __all__ = ["FORMAT", "VERSION", "HistoryError", "read_history", "set_aside", "write_history"]
 
@@ -43,7 +40,6 @@ MAX_WALL = 1e11
 MAX_NAME = 1000
 BYTES_PER_LOOP = 64 * (MAX_ENTRIES + 4)  # a loop's whole retention, generously
 _VERDICTS = frozenset(str(v) for v in Verdict) - NOT_CALLS
-_FIRST, _LAST = dt.date(1970, 1, 1).toordinal(), dt.date(9999, 12, 31).toordinal()
 
 
 class HistoryError(Exception):
@@ -124,23 +120,9 @@ def _loop(name: Any, entry: Any) -> None:
     if not 0 < len(days) <= MAX_ENTRIES or len(verdicts) != len(days):
         raise ValueError(f"{where}: {len(days)} days and {len(verdicts)} verdicts (1 .. "
                          f"{MAX_ENTRIES}, as many of each)")
-    last = _FIRST - 1
-    for k, day in enumerate(days):
-        try:
-            ordinal = dt.date.fromisoformat(day).toordinal() if isinstance(day, str) \
-                and len(day) == 10 else None
-        except ValueError:
-            ordinal = None
-        if ordinal is None or not last < ordinal <= _LAST:
-            raise ValueError(f"{where}.days[{k}]: not a date after the one before")
-        last = ordinal
+    check_days(days, where)
     for k, v in enumerate([*verdicts, entry["verdict"]]):
         if v not in _VERDICTS:
             raise ValueError(f"{where}: verdict {k}: not one of {', '.join(sorted(_VERDICTS))}")
     _number(entry["t"], f"{where}.t")
 
-
-def set_aside(path: Path, kind: str) -> Path:
-    dest = path.with_name(f"{path.name}.{kind}-{time.strftime('%Y%m%dT%H%M%S')}")
-    os.replace(path, dest)
-    return dest

@@ -59,7 +59,8 @@ def test_a_manifest_sp_column(capsys, export: Path, tmp_path: Path) -> None:
     other = tmp_path / "renamed.csv"
     other.write_text(export.read_text().replace("Set Point", "SPX", 1))
     (tmp_path / "loops.csv").write_text(f"file,sp\n{other},spx\n{other},\n")
-    assert main(["analyze", "--manifest", str(tmp_path / "loops.csv"), "--json"]) == 0
+    assert main(["analyze", "--manifest", str(tmp_path / "loops.csv"), "--json",
+                 "--sort", "file"]) == 0
     first, second = json.loads(capsys.readouterr().out)
     assert "Judged on samples 600-2399" in first["reason"]
     assert "Judged on samples" not in second["reason"]

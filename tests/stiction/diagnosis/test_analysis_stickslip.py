@@ -127,7 +127,7 @@ def test_pv_wandering_under_a_random_load_is_not_stuck(load_tau: float, seed: in
     """A healthy loop under a random load (SD 2 % of span), sampled every 10 s: PV wanders
     inside the stuck band while OP drifts, then swings fast. That is not a stuck valve: the
     spread of PV over the 'stuck' phase is about half the swing (these windows were false
-    stick-slip alarms; 4 of the 10 such windows of bench/false_alarms.py still are)."""
+    stick-slip alarms; 4 of the 10 such windows of bench/accuracy/false_alarms.py still are)."""
     res = simulate(scenario("healthy", load_sd=0.02, load_tau=load_tau), duration=7200.0,
                    noise=0.02, seed=seed)
     op, pv = res.op[::10][start : start + 360], res.pv[::10][start : start + 360]
