@@ -12,13 +12,14 @@ docs/configuration.md):
 - **Judgements** (:data:`FILTERED`: ``stiction``, ``no_stiction``, ``undetermined``,
   ``not_oscillating``, ``valve_not_responding``): a new one replaces the published one when
   the loop's verdict has differed from it for ``rounds`` analysis rounds in a row (the
-  latest is published), or, into or out of ``stiction`` (the alarm), at once when its
-  confidence of stiction differs from the published one's by at least ``margin``:
-  evidence that moved that far is a change (a valve repaired, or one that began to stick),
-  not a window sliding; both confidences of one kind (both from the valve's travel, or
-  both from OP and PV). Between the other judgements the rounds alone decide: a weakly
-  cycling loop's confidence can jump by half the scale from one round to the next (the
-  demo plant's FIC102: 0.05, 0.63, 0.06), and nothing urgent hangs on those changes.
+  latest is published), or, out of ``stiction`` (the alarm), at once when its confidence
+  of stiction fell from the published one's by at least ``margin``: evidence that moved
+  that far is a change (a valve repaired), not a window sliding (into ``stiction`` a new
+  verdict always holds its rounds: :meth:`VerdictFilter._moved`); both confidences of one
+  kind (both from the valve's travel, or both from OP and PV). Between the other
+  judgements the rounds alone decide: a weakly cycling loop's confidence can jump by half
+  the scale from one round to the next (the demo plant's FIC102: 0.05, 0.63, 0.06), and
+  nothing urgent hangs on those changes.
   A round whose confidence lies within ``band`` of one of the decision's thresholds
   (:meth:`VerdictFilter._near_threshold`) neither counts towards a change nor resets one:
   it could have read the other way (the demo's U2.TIC201 read 0.507 against a threshold of
@@ -48,11 +49,11 @@ the age of the judgement it shows is :meth:`VerdictFilter.published`'s.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Callable, Iterable
 
 from stiction import Assessment, Verdict
-from stiction.diagnosis.model import load as learned_model
 from stiction.diagnosis.travel import BY_TRAVEL
 
 from ..config.model import HysteresisSettings
@@ -153,7 +154,7 @@ class VerdictFilter:
             f"{self.settings.rounds} rounds ({state.away} so far){moves}"))
 
     def _near_threshold(self, a: Assessment) -> float | None:
-        """The decision's threshold (``no_stiction`` up to it, ``stiction`` from it) that the
+        """The threshold (the decision's or the shape network's, :func:`_thresholds`) that the
         confidence of ``a`` lies within ``band`` of, where its judgement is read from the
         confidence; else None. Such a round could have read the other way on another
         machine or with one sample more: it neither counts towards a change nor resets
@@ -161,17 +162,19 @@ class VerdictFilter:
         if a.confidence is None or a.verdict not in READ_FROM_CONFIDENCE or \
                 self.settings.rounds == 1:  # rounds 1: every round's verdict is published
             return None
-        model = learned_model()
-        return next((th for th in (model.no_stiction_at, model.stiction_at)
+        return next((th for th in _thresholds()
                      if abs(a.confidence - th) < self.settings.band), None)
 
     def _moved(self, old: Assessment, new: Assessment) -> bool:
-        """Into or out of ``stiction`` (the alarm), with the confidence moved by the
-        margin: a valve repaired, or one that began to stick. Only confidences of one kind
+        """Out of ``stiction`` (the alarm), with the confidence moved by the margin: a valve
+        repaired. Into it a new verdict always holds its rounds: with the shape network the
+        confidence of one window can leap (the demo's U2.FIC101: 0.33, 0.89, 0.26 in three
+        rounds, each leap past the margin), and a call that stands for one round sends a
+        crew to a valve for nothing (issue 36). Only confidences of one kind
         compare: the valve's travel gives the share of its reversals that stuck, OP and PV
         a probability, and a loop whose position is usable in some rounds and not in others
         flipped between the two every round (issue 35)."""
-        return (Verdict.STICTION in (old.verdict, new.verdict) and
+        return (old.verdict == Verdict.STICTION != new.verdict and
                 old.confidence is not None and new.confidence is not None and
                 by_travel(old) == by_travel(new) and
                 abs(new.confidence - old.confidence) >= self.settings.margin)
@@ -223,3 +226,16 @@ def _conf(a: Assessment) -> str:
 
 def _clock(t: float) -> str:
     return time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(t))
+
+
+@functools.cache
+def _thresholds() -> tuple[float, ...]:
+    """Every threshold a verdict is read from its confidence at: the learned decision's
+    (``no_stiction`` up to 0.5, ``stiction`` from 0.87) and the OP-PV shape network's
+    (``no_stiction`` under 0.16, ``stiction`` from 0.69; issue 36), which is the confidence
+    where the network reads the window. Imported at the first judgement, not at start (the
+    network's module pulls SciPy's signal package into the polling process)."""
+    from stiction.diagnosis.call import shipped  # noqa: PLC0415
+
+    t = shipped()
+    return (t.no_stiction_at, t.stiction_at, t.band_low, t.threshold)

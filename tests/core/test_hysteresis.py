@@ -53,7 +53,7 @@ def test_a_change_that_holds_is_published_after_its_rounds() -> None:
     f = VerdictFilter(HysteresisSettings(rounds=3, margin=0.5))
     f.publish("L", a(S, 0.9, fd=0.2), 0.0)
     out = [f.publish("L", x, float(t)) for t, x in enumerate([a(U, 0.8), a(N, 0.6),
-                                                              a(U, 0.7, "latest")], 1)]
+                                                              a(U, 0.75, "latest")], 1)]
     assert [o.verdict for o in out] == [S, S, U]
     assert out[-1].reason == "latest" and out[-1].fd is None
     assert f.counts == {"published": 1, "held_back": 2}

@@ -1,7 +1,8 @@
 """The demo's verdicts hold still (issue 32 item 3): a 90 s demo at its 40x is 3,600 process
 seconds, 30 analysis rounds; replayed in memory (``demo_replay``: the demo's simulated PLC
 and the gateway's own analysis rounds, verdict hysteresis and plant step, no sockets, no wall
-clock), no loop's published verdict changes once its window is full. Nothing in the demo's
+clock), no loop's published verdict goes into or out of ``stiction`` once its window is full, nor
+back and forth. Nothing in the demo's
 valves or loads changes; on main its sticky level loop went stiction -> undetermined ->
 stiction -> undetermined -> stiction, and the plant's weakly cycling loops changed every
 round or two."""
@@ -33,7 +34,12 @@ def test_no_verdict_changes_once_a_window_is_full() -> None:
                 if k * DEMO_ANALYSIS_INTERVAL_S >= window_s]
         assert full, name
         changes[name] = [(a, b) for a, b in itertools.pairwise(full) if a != b]
-    assert not {n: c for n, c in changes.items() if c}, rounds
+    # never into or out of the alarm, never back and forth: a loop may settle once between
+    # undetermined and no_stiction as its window slides (the shape network's reading of the
+    # demo's U2.FIC102 drifts from 0.22 to 0.09 across its band_low, 0.16: issue 36)
+    alarm = {n: c for n, c in changes.items() if any("stiction" in pair for pair in c)}
+    assert not alarm, rounds
+    assert all(len(c) <= 1 for c in changes.values()), changes
     # the verdicts the demo shows (README)
     last = rounds[-1]
     assert last["FIC101"][0] == "stiction"
