@@ -154,7 +154,7 @@ class VerdictFilter:
             f"{self.settings.rounds} rounds ({state.away} so far){moves}"))
 
     def _near_threshold(self, a: Assessment) -> float | None:
-        """The threshold (the decision's or the shape network's, :func:`_thresholds`) that the
+        """The threshold (the decision's or the shape network's, :func:`thresholds`) that the
         confidence of ``a`` lies within ``band`` of, where its judgement is read from the
         confidence; else None. Such a round could have read the other way on another
         machine or with one sample more: it neither counts towards a change nor resets
@@ -162,7 +162,7 @@ class VerdictFilter:
         if a.confidence is None or a.verdict not in READ_FROM_CONFIDENCE or \
                 self.settings.rounds == 1:  # rounds 1: every round's verdict is published
             return None
-        return next((th for th in _thresholds()
+        return next((th for th in thresholds()
                      if abs(a.confidence - th) < self.settings.band), None)
 
     def _moved(self, old: Assessment, new: Assessment) -> bool:
@@ -229,12 +229,13 @@ def _clock(t: float) -> str:
 
 
 @functools.cache
-def _thresholds() -> tuple[float, ...]:
+def thresholds() -> tuple[float, ...]:
     """Every threshold a verdict is read from its confidence at: the learned decision's
     (``no_stiction`` up to 0.5, ``stiction`` from 0.87) and the OP-PV shape network's
     (``no_stiction`` under 0.16, ``stiction`` from 0.69; issue 36), which is the confidence
     where the network reads the window. Imported at the first judgement, not at start (the
-    network's module pulls SciPy's signal package into the polling process)."""
+    network's module pulls SciPy's signal package into the polling process:
+    :func:`gateway.core.siteshare.warm` reads them at start, before polling)."""
     from stiction.diagnosis.call import shipped  # noqa: PLC0415
 
     t = shipped()

@@ -13,7 +13,9 @@ restored results, before the first round. Fewer than :data:`MIN_WINDOWS` windows
 ``analysis.site_adaptation: false``: each loop is scored alone, and its reason says so.
 
 :mod:`stiction.diagnosis.adapt` (with the network and SciPy's signal package under it) is
-imported at the first round, not at start: ``check-config`` and the start stay as fast.
+imported when the analysis starts, off the event loop and before polling (:func:`warm`),
+not when the gateway's modules are: ``check-config`` stays as fast, and no poll waits for
+an import (importing it in the first round stalled the polls for a second).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from .store import ResultStore
 if TYPE_CHECKING:
     from stiction.diagnosis.adapt import Site
 
-__all__ = ["MIN_WINDOWS", "SiteShare"]
+__all__ = ["MIN_WINDOWS", "SiteShare", "warm"]
 
 MIN_WINDOWS = 2
 """Windows the network read before a share is estimated (one window moves it by a tenth
@@ -67,3 +69,13 @@ class SiteShare:
         from stiction.diagnosis.adapt import adapt  # noqa: PLC0415 (module doc)
 
         return adapt([a], self.site)[0]
+
+
+def warm() -> None:
+    """Import the adaptation and read the thresholds the hysteresis compares with (a second
+    of imports): called in a thread when the analysis starts, before polling."""
+    from stiction.diagnosis import adapt  # noqa: F401, PLC0415 (module doc)
+
+    from .hysteresis import thresholds  # noqa: PLC0415
+
+    thresholds()

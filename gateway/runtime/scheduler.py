@@ -48,6 +48,7 @@ from ..core.hysteresis import VerdictFilter
 from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolve
 from ..core.plant import PlantTracker, analyze_plant_job, plant_jobs
 from ..core.siteshare import SiteShare
+from ..core.siteshare import warm as warm_site
 from ..core.store import LoopResult, ResultStore
 from ..core.windows import LoopGroup
 from .logs import clip, sizes_text
@@ -146,8 +147,7 @@ class AnalysisScheduler:
                  on_verdict: Callable[[str], None] | None = None,
                  time_scale: float = 1.0, hooks: RoundHooks | None = None,
                  site_adaptation: bool = True) -> None:
-        self.store = store
-        self.time_scale = time_scale
+        self.store, self.time_scale = store, time_scale
         self.groups = list(groups)  # (sets the windows' lengths: the longest hold)
         self.interval_wall_s = interval_wall_s
         self.workers = workers or max(1, (os.cpu_count() or 2) - 1)
@@ -205,6 +205,7 @@ class AnalysisScheduler:
 
     async def start(self) -> None:
         """Start the worker processes (and import the analysis in each) before polling."""
+        await asyncio.to_thread(warm_site)  # the adaptation's imports, off the event loop
         if self._executor is not None:
             self._pool = self._executor()
             return
