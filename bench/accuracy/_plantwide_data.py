@@ -187,15 +187,21 @@ def view(kind: str, count: int, seed: int, name: str) -> Analysed:
     return list(_pickled(CACHE / f"plants-{kind}-{name}s-{key}.pickle", make))
 
 
-def tep_runs() -> list[tuple[Any, dict[str, Assessment]]]:
-    """The corpus's TEP plant runs, every loop analysed (self-regulating: the analysis is
-    told nothing); cached by stiction's code and the runs. Empty without the corpus;
-    ``PLANTWIDE_CORPUS`` names another corpus folder (a copy being built: the runs so far)."""
+def tep_runs(shared: bool = False) -> list[tuple[Any, dict[str, Assessment]]]:
+    """The corpus's TEP plant runs (the 457 revised Tennessee Eastman runs of 9 loops, the
+    other measurements as indicators: ``tep-mode*``), or with ``shared`` the 29 shared ones
+    of ../shared/data/tep-sticky-valves (2 loops, no indicators: ``tep-shared``), every loop
+    analysed (self-regulating: the analysis is told nothing); cached by stiction's code and
+    the runs. Empty without the corpus; ``PLANTWIDE_CORPUS`` names another corpus folder (a
+    copy being built: the runs so far)."""
     from lab import _cache  # noqa: PLC0415  (the built corpus)
     from lab.labels.corpus import load_plant_runs  # noqa: PLC0415
 
-    folder = Path(os.environ.get("PLANTWIDE_CORPUS", str(_cache.corpus())))
-    runs = [r for r in load_plant_runs(cache=folder) if r.source.startswith("tep-mode")]
+    if shared:
+        runs = load_plant_runs(sources=["tep-shared"])
+    else:
+        folder = Path(os.environ.get("PLANTWIDE_CORPUS", str(_cache.corpus())))
+        runs = [r for r in load_plant_runs(cache=folder) if r.source.startswith("tep-mode")]
     if not runs:
         return []
     key = hashlib.sha256((_code_key() + "".join(r.id for r in runs)).encode()).hexdigest()

@@ -16,7 +16,9 @@ bench/accuracy/_plantwide_data.py):
   (at least ``RESOLVED`` samples a period: at 60 s a two-minute cycle is not, and is
   counted apart), visible, and reaches another loop in that view (:func:`reaches`).
 - **TEP plant runs** (``lab.labels.corpus.load_plant_runs``, when the corpus is built):
-  the XMV loops and XMEAS indicators of each revised Tennessee Eastman run, 24 h at 36 s.
+  the XMV loops and XMEAS indicators of each of the 457 revised Tennessee Eastman runs, 24 h
+  at 36 s; and, apart, the 29 shared runs of ../shared/data/tep-sticky-valves (the two
+  cooling-water loops, 180 and 600 s, no indicators).
 
 Per kind and view: sticky valves whose cycle reaches others, named the source of their
 group (target 90 %), ranked first; loops that are no source called ``stiction`` before
@@ -226,12 +228,13 @@ def report(totals: dict[str, Any]) -> None:
           f"{sum(c['wrong loop named'] for c in totals.values())}")
 
 
-def tep() -> None:
+def tep(shared: bool = False) -> None:
     """Issue 29's TEP lines: a sticking valve whose cycle reaches other loops (its loop is
     in a group) named the source; no follower called ``stiction``; without a sticking valve,
-    no loop named a valve source, and a disturbance's groups without a loop source."""
+    no loop named a valve source, and a disturbance's groups without a loop source. The
+    corpus's 457 runs, or with ``shared`` the 29 shared runs (:func:`tep_runs`)."""
     c: collections.Counter[str] = collections.Counter()
-    for run_, before in tep_runs():
+    for run_, before in tep_runs(shared):
         pa = analyze_plant(dict(run_.loops), ts=run_.ts, indicators=run_.indicators,
                            assessments=before)
         after = pa.apply(before)
@@ -263,10 +266,12 @@ def tep() -> None:
             if run_.external:
                 c["external groups"] += len(pa.groups)
                 c["no loop source"] += sum(1 for g in pa.groups if g.source is None)
+    which = "shared TEP runs of ../shared/data/tep-sticky-valves (2 loops, no indicators)" \
+        if shared else "TEP runs of the corpus"
     if not c:
-        print("== plant-wide: TEP runs: skipped (python -m lab corpus builds them) ==")
+        print(f"== plant-wide: {which}: skipped (python -m lab corpus builds them) ==")
         return
-    print(f"== plant-wide: TEP runs ({c['sticky runs']} with a sticking valve, "
+    print(f"== plant-wide: {which} ({c['sticky runs']} with a sticking valve, "
           f"{c['clean runs']} without) ==")
     print(f"  sticking valve's cycle in a group: {c['reach']}; named the source "
           f"{_pct(c['named'], c['reach'])} (target >= 90 %), ranked first "
@@ -283,6 +288,36 @@ def tep() -> None:
           f"loop named the source: {c['confident propagated, no loop source']} (target 0)")
 
 
+def acceptance(measured: dict[str, dict[str, collections.Counter[str]]]) -> None:
+    """Issue 37's acceptance over every run of the own plants: per kind the sticky valves
+    named the source and the external cycles reported without a loop source, in all and in
+    the worst run (view and seeds); valve sources named in plants without a sticking valve
+    and confident calls turned ``propagated`` with no other loop named the source."""
+    print("== plant-wide: issue 37's acceptance over every run above ==")
+
+    def line(what: str, kinds: tuple[str, ...], hit: str, of: str, target: str) -> None:
+        for kind in kinds:
+            per = {run_: t[kind] for run_, t in measured.items() if kind in t}
+            a, b = sum(c[hit] for c in per.values()), sum(c[of] for c in per.values())
+            worst = min((run_ for run_ in per if per[run_][of]),
+                        key=lambda r: per[r][hit] / per[r][of], default=None)
+            low = "" if worst is None else \
+                f"; worst {worst}: {_pct(per[worst][hit], per[worst][of])}"
+            print(f"  {kind:9s} {what} ({target}): {_pct(a, b)}{low}")
+
+    line("sticky valve named the source", SOURCE_KINDS, "named", "reach", ">= 90 %")
+    line("reported without a loop source", ("external",), "no loop source", "external groups",
+         ">= 90 %")
+    clean = {kind: sum(t[kind]["valve source named"] for t in measured.values() if kind in t)
+             for kind in next(iter(measured.values())) if kind not in SOURCE_KINDS}
+    print(f"  plants without a sticking valve naming a valve source (0): "
+          f"{sum(clean.values())} ({', '.join(f'{k} {n}' for k, n in clean.items())})")
+    lost = sum(c["confident propagated, no loop source"] for t in measured.values()
+               for c in t.values())
+    print(f"  loops called stiction at {CONFIDENT:g} or more turned propagated with no other "
+          f"loop named the source (0): {lost}")
+
+
 def main() -> None:
     t0 = time.perf_counter()
     count = int(os.environ.get("PLANTWIDE_PLANTS", "30"))
@@ -290,6 +325,7 @@ def main() -> None:
     views = () if chosen == "none" else \
         tuple(v.strip() for v in chosen.split(",") if v.strip()) or VIEWS
     warnings.filterwarnings("ignore", category=RuntimeWarning)  # coherence of a flat series
+    measured: dict[str, dict[str, collections.Counter[str]]] = {}
     for name in views:
         ts, stored = view_ts(name)
         how = (f" as a historian stores it (indicators lagged {SENSOR_TAU:g} s, compressed by "
@@ -297,8 +333,12 @@ def main() -> None:
         for label, seeds in (("development", SEEDS), ("held out", HELD_OUT)):
             print(f"== plant-wide: own plants at {ts:g} s{how}, {label} seeds {seeds} ({count} "
                   "per kind and seed) ==", flush=True)
-            report(run(count, seeds, name))
+            measured[f"{name} s {label}"] = totals = run(count, seeds, name)
+            report(totals)
+    if measured:
+        acceptance(measured)
     tep()
+    tep(shared=True)
     print(f"({time.perf_counter() - t0:.0f} s)")
 
 

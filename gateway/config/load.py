@@ -189,6 +189,7 @@ HYSTERESIS_KEYS: dict[str, Callable[[Any], Any]] = {
 ANALYSIS_KEYS: dict[str, Callable[[Any], Any]] = {
     "site_calibration": s.boolean,
     "site_calibration_min_each": s.integer(2, 1000),
+    "site_adaptation": s.boolean,
 }
 
 

@@ -113,6 +113,9 @@ class AnalysisSettings:
     site_calibration: bool = True
     # findings of each kind (sticky, not sticky) before the site's calibration is fitted
     site_calibration_min_each: int = 5
+    # call each loop at the share of sticky valves the loops' own windows imply (label-shift
+    # EM over the shape network's readings: core/siteshare.py); false: each loop alone
+    site_adaptation: bool = True
 
 
 @dataclasses.dataclass(frozen=True)

@@ -88,8 +88,8 @@ class Gateway:
             interval_wall_s=g.analysis_interval_s / g.time_scale, workers=g.analysis_workers,
             batch_size=batch_size, analyze=analyze, executor=executor,
             on_duration=self.metrics.analysis_duration.observe, plant=config.plant,
-            hysteresis=config.hysteresis, on_verdict=self.metrics.count_verdict,
-            time_scale=g.time_scale, hooks=self.crew)
+            hysteresis=config.hysteresis, on_verdict=self.metrics.count_verdict, hooks=self.crew,
+            time_scale=g.time_scale, site_adaptation=config.analysis.site_adaptation)
         self.reloads = 0
         self.polling = asyncio.Event()  # set once every poller has completed a tick
         self._polls = PollTasks()

@@ -47,6 +47,7 @@ from ..config.model import Config, HysteresisSettings, PlantSettings
 from ..core.hysteresis import VerdictFilter
 from ..core.jobs import DEFAULT_ANALYZE, LoopJob, analyze_batch, batches, resolve
 from ..core.plant import PlantTracker, analyze_plant_job, plant_jobs
+from ..core.siteshare import SiteShare
 from ..core.store import LoopResult, ResultStore
 from ..core.windows import LoopGroup
 from .logs import clip, sizes_text
@@ -122,6 +123,13 @@ class RoundHooks(Protocol):
     def after_round(self, store: ResultStore) -> None: ...
 
 
+JOINED = ("after ``shutdown(wait=False)`` the pool's manager thread may close its wake-up "
+          "pipe while CPython 3.11's exit hook writes to it, printing 'OSError: [Errno 9] Bad "
+          "file descriptor' at exit (CPython gh-125451; the demo showed it in 2 of 5 runs); a "
+          "running batch is at most one per worker, well under a second at the default size")
+"""Why :meth:`AnalysisScheduler.stop` joins the pool."""
+
+
 class AnalysisScheduler:
     """Runs analysis rounds over ``groups`` and writes the results into ``store``.
 
@@ -136,7 +144,8 @@ class AnalysisScheduler:
                  plant: PlantSettings | None = None,
                  hysteresis: HysteresisSettings | None = None,
                  on_verdict: Callable[[str], None] | None = None,
-                 time_scale: float = 1.0, hooks: RoundHooks | None = None) -> None:
+                 time_scale: float = 1.0, hooks: RoundHooks | None = None,
+                 site_adaptation: bool = True) -> None:
         self.store = store
         self.time_scale = time_scale
         self.groups = list(groups)  # (sets the windows' lengths: the longest hold)
@@ -150,12 +159,11 @@ class AnalysisScheduler:
         self.plant = plant if plant is not None else PlantSettings()
         # each loop's verdict passes it before it is published (core/hysteresis.py)
         self.verdicts = VerdictFilter(hysteresis, on_count=on_verdict)
-        self.rounds = 0
-        self.last_round_s = 0.0
-        self.last_plant_s = 0.0
+        self.rounds, self.last_round_s, self.last_plant_s = 0, 0.0, 0.0
         self._executor = executor
         self._pool: Executor | None = None
         self.hooks = hooks  # the site's calibration and the list worst first (crewlist)
+        self.site = SiteShare(site_adaptation)  # the loops' share of sticky valves
 
     @property
     def groups(self) -> list[LoopGroup]:
@@ -188,6 +196,7 @@ class AnalysisScheduler:
         self.groups = list(groups)
         self.interval_wall_s = g.analysis_interval_s / g.time_scale
         self.plant = config.plant
+        self.site.enabled = config.analysis.site_adaptation
         self.verdicts.settings = config.hysteresis
         # a loop whose result the reload did not carry (its window, or its config, changed)
         # starts fresh, its hold included (issue 35 item 5)
@@ -213,11 +222,8 @@ class AnalysisScheduler:
                                for _ in range(self.workers)))
 
     async def stop(self) -> None:
-        """Cancel queued batches, let running ones finish (at most one batch per worker, well
-        under a second at the default batch size) and join the pool, off the event loop.
-        Joining matters: after ``shutdown(wait=False)`` the pool's manager thread may close
-        its wake-up pipe while CPython 3.11's exit hook writes to it, printing "OSError: [Errno
-        9] Bad file descriptor" at exit (CPython gh-125451; the demo showed it in 2 of 5 runs)."""
+        """Cancel queued batches, let running ones finish and join the pool, off the event
+        loop (why joining matters: :data:`JOINED`)."""
         pool, self._pool = self._pool, None
         if pool is not None:
             await asyncio.to_thread(pool.shutdown, wait=True, cancel_futures=True)
@@ -242,6 +248,7 @@ class AnalysisScheduler:
         sem = asyncio.Semaphore(2 * self.workers)
         done = 0
         held: dict[int, Held] | None = {} if self.plant.enabled else None
+        self.site.estimate(store)  # from the latest results (restored ones after a restart)
 
         async def one(batch: list[LoopJob]) -> None:
             nonlocal done
@@ -254,7 +261,9 @@ class AnalysisScheduler:
             t = now()
             for index, raw, fill, samples, dur, swing in results:
                 shown, name = store.results[index], store.loops[index]
-                analysed = raw if self.hooks is None else self.hooks.calibrate(name, raw, t)
+                at_site = self.site.apply(raw)
+                analysed = at_site if self.hooks is None else \
+                    self.hooks.calibrate(name, at_site, t)
                 assessment = self.verdicts.publish(
                     name, analysed, t, shown=None if shown is None else shown.assessment,
                     shown_at=None if shown is None else shown.judged_at,

@@ -12,8 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from .._assessment import Assessment, Verdict
+from ..diagnosis.network import NAME as NETWORK
 from ..diagnosis.reasons import WHAT
-from . import batch, historian, ranking
+from . import batch, historian, ranking, site
 from ._common import Subparsers, UsageError
 from .every import duration as every_duration
 from .loop import SP_COLUMNS, LoopOptions, analyze_file, bursts, view
@@ -96,6 +97,7 @@ def add_analyze(sub: Subparsers) -> None:
     p.add_argument("--plot", type=Path, default=None, help="draw OP, PV and the fit to "
                    "FILE.png; several files: a folder, one PNG per file (its name's stem)")
     ranking.add_options(p)  # --sort, --top, --findings, --report (several files)
+    site.add_option(p)  # --no-site (several files)
     p.set_defaults(handler=_cmd_analyze)
 
 
@@ -128,8 +130,10 @@ def _print(a: Assessment, shown: dict[str, Any]) -> None:
     print(f"means:   {a.verdict.advice}")
     for key, val in shown.items():
         if key not in {"verdict", "reason", "warnings", "evidence", "size", "weighed",
-                       "stretch"} and val is not None:
+                       "stretch", "site", "site_share"} and val is not None:
             print(f"  {key}: {_value(key, val, a)}")
+    if any(e.test == NETWORK and e.value is not None for e in a.evidence):
+        print(f"  site: {site.said(shown)}")  # how the shape network's reading was taken
     size = shown["size"]
     for key in ("fd", "fs", "jump", "band", "slip") if size else ():
         if size.get(key) is not None:

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from .._errors import ParameterError, StictionError
-from . import ranking
+from . import ranking, site
 from ._common import UsageError, param_option, pyplot
 from .every import every
 from .loop import LoopOptions, analyze_file
@@ -59,8 +59,9 @@ def run(args: argparse.Namespace) -> int:
         notes += said if len(loops) == 1 else []
     if bar is not None:
         bar.clear()
+    rows, adapted = site.adapt_rows(rows, args)  # at the batch's share of sticky valves
     rows, said = ranking.finish(rows, loops, args)  # worst first, --findings, --report
-    ranking.warn(said)
+    ranking.warn([*([adapted] if adapted else []), *said])
     if args.json:
         print(json.dumps([r.to_dict() for r in rows]))
     else:

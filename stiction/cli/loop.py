@@ -266,8 +266,10 @@ def view(a: Assessment, d: Details | None = None, stretch: dict[str, Any] | None
     the limit cycle, cycles_used; None when not sized) instead of fractions beside OP
     units; ``weighed``: what weighed in the decision, strongest first (``d.parts``: each
     entry's part of the log-odds, + for stiction; not votes); ``stretch``: the stretch to
-    analyse alone, in the file's time, or None."""
+    analyse alone, in the file's time, or None; ``site``: ``"none"`` (scored alone, at the
+    simulation's share of sticky valves) or ``"adapted"`` (at ``site_share``, the batch's)."""
     out = {k: v for k, v in a.to_dict().items() if k not in SIZE_FIELDS}
+    out["site"], out["site_share"] = a.site, a.site_share  # "none": scored alone (issue 36)
     sizes = a.sizes()
     out["size"] = None if sizes is None else sizes.to_dict()
     parts = {} if d is None or d.parts is None else d.parts

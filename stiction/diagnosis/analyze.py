@@ -178,7 +178,7 @@ def _cut_said(d: Details, cut: SetpointCut, ts: float) -> Details:
     """``d`` of the stretch ``cut`` chose, its reason (or, for a moving setpoint, its
     warnings) saying so."""
     a = d.assessment
-    if not cut.cuts:
+    if not cut.cuts and not cut.short:
         a = dataclasses.replace(a, warnings=(*a.warnings, cut.sentence(ts)))
         return dataclasses.replace(d, assessment=a)
     said = cut.sentence(ts)

@@ -19,17 +19,26 @@ In this order:
    alone.
 2. **Its own valve.** Else the top candidate whose own valve evidence is enough
    (:attr:`.source.MemberEvidence.valve_named`), unless its cycle trails (net flow below 0,
-   or below an indicator's).
+   or below that of an indicator whose cycle is the clearly nonlinear one while the loop's
+   is linear, as in 4). An indicator that leads it otherwise (one read between its valve
+   and its PV: a second gauge before a slow transmitter, a cooling-water temperature right
+   after the valve) leads it through the loop's own dynamics: *also fed from outside*.
 3. **Direction.** Else the top candidate when it leads the group (the highest net flow,
    at least ``FLOW_LEADS``, above every indicator's) and its cycle is nonlinear (index
-   above 1) and the most nonlinear of the loops (by ``NLI_MARGIN``, or with a net flow of
-   ``FLOW_NAME``); or when it leads by ``FLOW_NAME`` and its valve score reaches
-   ``SOURCE_SCORE`` (whatever its per-loop confidence: leading and a sticky valve that
-   explains its PV agree). Where the cycle has fewer than ``DIRECTION_SAMPLES`` samples a
-   period (a historian's 30 or 60 s on a cycle of minutes) a net flow of 0.1 either way is
-   noise: there the loop whose cycle is the most nonlinear by twice ``NLI_MARGIN`` and does
-   not clearly trail (net flow within ``FLOW_MARGIN`` of the others') is named by its
-   nonlinearity.
+   above 1) and the most nonlinear of the loops (a declared outer loop of its cascade
+   aside: its valve is the top candidate) by ``NLI_MARGIN``, or with a net flow of
+   ``FLOW_NAME``; a lead under ``FLOW_NAME`` does not name a loop whose valve fit clears
+   its valve (fitted, a valve score under half ``SOURCE_SCORE``: the loop a square load
+   from outside enters first leads weakly with a nonlinear cycle too). Or when it leads by
+   ``FLOW_NAME`` and its valve score reaches ``SOURCE_SCORE`` (whatever its per-loop
+   confidence: leading and a sticky valve that explains its PV agree). Where the cycle has
+   fewer than ``DIRECTION_SAMPLES`` samples a period (a historian's 30 or 60 s on a cycle
+   of minutes) a net flow of 0.1 either way is noise: there the loop whose cycle is the
+   most nonlinear by twice ``NLI_MARGIN`` and does not clearly trail (net flow within
+   ``FLOW_MARGIN`` of the others') is named by its nonlinearity. An indicator's lead does
+   not count against a loop whose own window suspects its valve (``CONFIDENT``) and whose
+   cycle is nonlinear, unless the indicator's is the clearly nonlinear one (a cooling-water
+   temperature read right after a sticky valve that its window cannot call at 36 s).
 4. **An indicator** (a measured signal of no loop) that leads the loops' cycle (its net
    Granger flow at least ``FLOW_LEADS`` and above every loop's):
 
@@ -40,9 +49,12 @@ In this order:
      deviations) and more nonlinear than the loop's by ``2 * NLI_MARGIN``, the loop's own
      cycle linear (index at most ``NLI_OUTSIDE``), as a header read right after a square
      load is;
+   - a loop called at ``CONFIDENT`` or more whose own cycle trails (net flow below 0) is no
+     source against such an indicator either: the cycle enters from outside and the loop
+     is *kept* (its call stands, no role: check upstream and its valve);
    - else the loop stays the source and the group is *also fed from outside*
-     (``upstream``: check upstream). A loop called at ``CONFIDENT`` or more always stays:
-     a flow indicator right after its sticky valve, or one that leads it through its own
+     (``upstream``: check upstream). A loop called at ``CONFIDENT`` or more stays: a flow
+     indicator right after its sticky valve, or one that leads it through its own
      measurement's dynamics (a level's integration, a slow transmitter), leads it and is
      more nonlinear than it (issue 37's real record: a net flow of +0.12, an index of 1.6
      against the sticky level loop's 0.8), and is no cause.
@@ -165,34 +177,53 @@ def _entry_beats(ind: IndicatorEvidence, e: MemberEvidence) -> bool:
 
 
 def _overrides(t: MemberEvidence, s: MemberEvidence, flow: Flow,
-               cascades: Mapping[str, str], resolved: Flow | None) -> bool:
+               cascades: Mapping[str, str], resolved: bool) -> bool:
     """Does ``t`` take the source's place from called loop ``s`` (module doc, 1)?"""
     if cascades.get(t.loop) == s.loop or t.loop == s.loop:
         return False  # the outer loop of a cascade: its valve is s
     own = t.valve >= SOURCE_SCORE or (nli_of(t) > NLI_NONLINEAR and nli_of(t) > nli_of(s)) \
-        or (t.valve >= SOURCE_SCORE / 2 and stronger(t, s, resolved))
-    if (s.confidence or 0.0) >= CONFIDENT and not stronger(t, s, resolved):
+        or (t.valve >= SOURCE_SCORE / 2 and stronger(t, s, flow, resolved=resolved))
+    if (s.confidence or 0.0) >= CONFIDENT and not stronger(t, s, flow, resolved=resolved):
         return False  # a confident call is overturned only by stronger evidence
     return own and flow(t.loop, s.loop) >= FLOW_MARGIN
 
 
 def _leads(top: MemberEvidence, ranking: Sequence[MemberEvidence],
-           indicators: Sequence[IndicatorEvidence]) -> list[str]:
+           indicators: Sequence[IndicatorEvidence], cascades: Mapping[str, str]) -> list[str]:
     """The evidence that names ``top`` by direction (module doc, 3): it leads the group
     (net flow at least ``FLOW_LEADS``, the highest, above every indicator's) and its cycle
-    is nonlinear and the most nonlinear, by ``NLI_MARGIN`` or with a net flow of
-    ``FLOW_NAME``; or it leads by ``FLOW_NAME`` and its valve score reaches
-    ``SOURCE_SCORE``."""
+    is nonlinear and the most nonlinear (a declared outer loop of ``top``'s cascade aside),
+    by ``NLI_MARGIN`` or with a net flow of ``FLOW_NAME``, and a weaker lead is not against a
+    valve fit that clears its valve; or it leads by ``FLOW_NAME`` and its valve score
+    reaches ``SOURCE_SCORE``."""
     flow = top.flow or 0.0
     if flow < FLOW_LEADS or flow < max(e.flow or 0.0 for e in ranking) or \
-            flow <= max((i.flow for i in indicators if i.flow is not None), default=-1e9):
+            flow <= max((i.flow for i in indicators if i.flow is not None
+                         and _against(i, top)), default=-1e9):
         return []
-    others = max((nli_of(e) for e in ranking if e is not top), default=-1e9)
+    others = max((nli_of(e) for e in ranking
+                  if e is not top and cascades.get(e.loop) != top.loop), default=-1e9)
     if nli_of(top) > NLI_NONLINEAR and nli_of(top) >= others and \
-            (flow >= FLOW_NAME or nli_of(top) >= others + NLI_MARGIN):
+            (flow >= FLOW_NAME or (nli_of(top) >= others + NLI_MARGIN and not _cleared(top))):
         return ["direction", "nonlinearity"]
     return ["direction", "own valve"] if flow >= FLOW_NAME and top.valve >= SOURCE_SCORE \
         else []
+
+
+def _against(ind: IndicatorEvidence, e: MemberEvidence) -> bool:
+    """Does an indicator's lead count against loop ``e`` being named by direction or
+    nonlinearity? Not where its window suspects its own valve (``CONFIDENT``) and its cycle
+    is nonlinear while the indicator's is not the clearly nonlinear one (:func:`_entry_beats`):
+    a signal read after its valve leads it through the loop's own dynamics."""
+    return (e.confidence or 0.0) < CONFIDENT or _entry_beats(ind, e)
+
+
+def _cleared(e: MemberEvidence) -> bool:
+    """Does ``e``'s own valve fit clear its valve (fitted, a valve score under half
+    ``SOURCE_SCORE``: a sticky valve explains no more of its PV than a linear one)? Then a
+    lead under ``FLOW_NAME`` and a nonlinear cycle do not name it: the loop a cycle from
+    outside enters first shows both (module doc, 3)."""
+    return e.valve_gain is not None and e.valve < SOURCE_SCORE / 2
 
 
 def _holds(e: MemberEvidence) -> bool:
@@ -210,7 +241,7 @@ def _trails(e: MemberEvidence, indicators: Sequence[IndicatorEvidence]) -> bool:
 
 def _choose(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvidence],
             flow: Flow, cascades: Mapping[str, str], previous: str | None, *,
-            resolved: Flow | None, carries: Callable[[MemberEvidence, MemberEvidence], bool]
+            resolved: bool, carries: Callable[[MemberEvidence, MemberEvidence], bool]
             ) -> tuple[MemberEvidence | None, list[str], str | None]:
     """(source, named_by, the called loop it overrides): module doc, 1-3 and the hold."""
     top = ranking[0]
@@ -226,7 +257,8 @@ def _choose(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvi
     if called:  # the first no other called loop in its cycle has stronger evidence than
         rivals = called[:RIVALS]
         best = next((c for c in rivals if not any(
-            stronger(d, c, resolved) and carries(d, c) for d in rivals if d is not c)),
+            stronger(d, c, flow, resolved=resolved) and carries(d, c)
+            for d in rivals if d is not c)),
             called[0])
         if top is not best and _overrides(top, best, flow, cascades, resolved):
             source, over = top, best.loop
@@ -236,11 +268,11 @@ def _choose(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvi
             source = best
             named = ["own verdict"] if best.called else \
                 ["own verdict of its cascade's outer loop"]
-    elif top.valve_named and not _trails(top, indicators):
+    elif top.valve_named and not _trails(top, [i for i in indicators if _entry_beats(i, top)]):
         source, named = top, ["own valve"]
-    elif _leads(top, ranking, indicators):
-        source, named = top, _leads(top, ranking, indicators)
-    elif resolved is None and (clear := shaped(ranking, indicators)) is not None:
+    elif _leads(top, ranking, indicators, cascades):
+        source, named = top, _leads(top, ranking, indicators, cascades)
+    elif not resolved and (clear := shaped(ranking, indicators, _against)) is not None:
         source, named = clear, ["nonlinearity"]
     held = next((e for e in ranking if e.loop == previous), None)
     if held is not None and held is not source and _holds(held) and \
@@ -288,7 +320,7 @@ def decide(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvid
     ``previous``: the source named last round; ``period``: the cycle's, in samples
     (module doc)."""
     lead = _lead(ranking, indicators)
-    resolved = flow if period >= DIRECTION_SAMPLES else None
+    resolved = period >= DIRECTION_SAMPLES
 
     def carries(a: MemberEvidence, b: MemberEvidence) -> bool:
         """Does ``b`` carry ``a``'s cycle: led by it, or in step with it?"""
@@ -299,8 +331,8 @@ def decide(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvid
                                    resolved=resolved, carries=carries)
     by_verdict = bool(named) and named[0].startswith(("own verdict", "held"))
     if lead is not None and (source is None or (
-            over is None and by_verdict and (source.confidence or 0.0) < CONFIDENT
-            and _entry_beats(lead, source))):
+            over is None and by_verdict and _entry_beats(lead, source) and (
+                (source.confidence or 0.0) < CONFIDENT or (source.flow or 0.0) < 0))):
         return _from_outside(ranking, lead, source)
     demoted: dict[str, str] = {}
     kept: dict[str, str] = {}
@@ -308,7 +340,7 @@ def decide(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvid
     for e in ranking:
         if e is source or not (e.called or e.valve_named or (
                 (e.flow or 0.0) >= FLOW_NAME and e.valve >= SOURCE_SCORE
-                and "own valve" in _leads(e, ranking, indicators))):
+                and "own valve" in _leads(e, ranking, indicators, cascades))):
             continue
         if source is None:
             if e.called:
@@ -337,14 +369,15 @@ def decide(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvid
 
 def _follows(source: MemberEvidence, e: MemberEvidence, *, named: Sequence[str],
              over: str | None, flow: Flow, granger: Flow, coherence: Flow | None,
-             resolved: Flow | None) -> str | None:
+             resolved: bool) -> str | None:
     """Why called (or valve-named) member ``e`` follows ``source`` (module doc), or None
     when it does not."""
     net = flow(source.loop, e.loop)
     if e.loop == over:
         return (f"{source.loop} leads its cycle (Granger net flow {net:+.2f}; {source.loop} is "
                 f"named by {', '.join(named)})")
-    if e.called and (e.confidence or 0.0) >= CONFIDENT and not stronger(source, e, resolved):
+    if e.called and (e.confidence or 0.0) >= CONFIDENT and \
+            not stronger(source, e, flow, resolved=resolved):
         return None  # a confident call is overturned only by stronger evidence
     if granger(source.loop, e.loop) >= COUPLED and net > 0:
         return f"{source.loop} leads its cycle (Granger net flow {net:+.2f})"

@@ -9,8 +9,8 @@ indices differ only by ``NLI_MARGIN`` or more; a Granger net flow counts from
 by itself from ``FLOW_NAME``, and one loop leads another clearly by ``FLOW_MARGIN``; a
 per-loop confidence and a valve score are clearly higher by ``CONF_MARGIN`` and
 ``VALVE_MARGIN``. Where the cycle has fewer than ``DIRECTION_SAMPLES`` samples a period the
-band-passed cycle is mostly interpolation: direction does not weigh in comparing two loops
-and a nonlinearity only by twice its margin.
+band-passed cycle is mostly interpolation: in comparing two loops a lead counts only from
+``FLOW_NAME`` and a nonlinearity only by twice its margin.
 """
 
 from __future__ import annotations
@@ -66,39 +66,45 @@ def nli_of(e: MemberEvidence | IndicatorEvidence | None) -> float:
     return -1e9 if e is None or e.nli is None else e.nli
 
 
-def stronger(a: MemberEvidence, b: MemberEvidence, flow: Flow | None) -> bool:
+def stronger(a: MemberEvidence, b: MemberEvidence, flow: Flow | None, *,
+             resolved: bool = True) -> bool:
     """Is ``a``'s own evidence of being the source clearly stronger than ``b``'s? Clearly
     more on more of its pieces than ``b`` is on its (a per-loop confidence higher by
     ``CONF_MARGIN``, a valve score by ``VALVE_MARGIN``, a nonlinear cycle more so by
     ``NLI_MARGIN``, its cycle leading the other's by ``FLOW_MARGIN``): a follower called at
     0.93 against a source at 0.72 whose valve, nonlinearity and lead all say more is the
-    weaker. ``flow`` None: the cycle is not resolved (``DIRECTION_SAMPLES``): direction does
-    not count, a nonlinearity only by twice ``NLI_MARGIN``."""
+    weaker. ``flow`` None: direction not measured. Where the cycle is not ``resolved``
+    (under ``DIRECTION_SAMPLES`` samples a period) a nonlinearity counts only by twice
+    ``NLI_MARGIN`` and a lead only by ``FLOW_NAME`` (three times the 0.1 by which a net flow
+    varies there: a follower called at 0.98 at 60 s that trails by 0.6 is the weaker)."""
     lead = None if flow is None else flow(a.loop, b.loop)
-    margin = NLI_MARGIN if flow is not None else 2.0 * NLI_MARGIN
+    margin = NLI_MARGIN if resolved else 2.0 * NLI_MARGIN
+    lead_margin = FLOW_MARGIN if resolved else FLOW_NAME
 
     def more(x: MemberEvidence, y: MemberEvidence, ahead: float | None) -> int:
         return sum(((x.confidence or 0.0) - (y.confidence or 0.0) >= CONF_MARGIN,
                     x.valve - y.valve >= VALVE_MARGIN,
                     nli_of(x) > NLI_NONLINEAR and nli_of(x) - nli_of(y) >= margin,
-                    ahead is not None and ahead >= FLOW_MARGIN))
+                    ahead is not None and ahead >= lead_margin))
 
     return more(a, b, lead) > more(b, a, None if lead is None else -lead)
 
 
-def shaped(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvidence]
-            ) -> MemberEvidence | None:
+def shaped(ranking: Sequence[MemberEvidence], indicators: Sequence[IndicatorEvidence],
+           counts: Callable[[IndicatorEvidence, MemberEvidence], bool] | None = None
+           ) -> MemberEvidence | None:
     """Where the cycle is not resolved for direction (``DIRECTION_SAMPLES``): the loop whose
     cycle is nonlinear and the most nonlinear by twice ``NLI_MARGIN``, its net flow within
-    ``FLOW_MARGIN`` of the highest of the others, loops' and indicators' (it does not
-    clearly trail), or None (:mod:`.decide`, 3)."""
+    ``FLOW_MARGIN`` of the highest of the others, loops' and indicators' (those ``counts``
+    says count against it; None: all), or None (:mod:`.decide`, 3)."""
     measured = [e for e in ranking if e.nli is not None]
     if not measured:
         return None
     best = max(measured, key=nli_of)
     others = max((nli_of(e) for e in ranking if e is not best), default=-1e9)
     flows = [e.flow for e in ranking if e is not best and e.flow is not None] + \
-        [i.flow for i in indicators if i.flow is not None]
+        [i.flow for i in indicators
+         if i.flow is not None and (counts is None or counts(i, best))]
     if nli_of(best) <= NLI_NONLINEAR or nli_of(best) < others + 2.0 * NLI_MARGIN or \
             best.flow is None or best.flow < max(flows, default=-1e9) - FLOW_MARGIN:
         return None

@@ -5,7 +5,8 @@ probability), and the margin rule compared them. Now only confidences of one kin
 change at once; between the two readings the rounds count.
 
 From the product's simulator: a good valve under a square-wave load (OP and PV read it as a
-sticky valve, ``stiction`` 0.91; its travel as a valve that follows OP, ``no_stiction``),
+sticky valve, ``stiction`` 0.91, before the shape network; its travel as a valve that follows
+OP, ``no_stiction``),
 its position read every round but lost for a fifth of the window in every other round (too
 gappy to measure: OP and PV decide)."""
 
@@ -51,8 +52,8 @@ def test_a_position_usable_every_other_round_does_not_flip_the_verdict() -> None
     # the two readings, far apart: the travel's no_stiction, OP and PV's stiction
     assert [by_travel(a) for a in rounds] == [k % 2 == 0 for k in range(ROUNDS)]
     assert {a.verdict for a in rounds[0::2]} == {Verdict.NO_STICTION}
-    assert Verdict.NO_STICTION not in {a.verdict for a in rounds[1::2]}
-    assert all(a.confidence is not None and a.confidence >= 0.8 for a in rounds[1::2])
+    # OP and PV's reading: 'stiction' 0.91 before the shape network (issue 36), which reads
+    # the square load for what it is; whatever it says, the published verdict holds
     f = VerdictFilter(HysteresisSettings(rounds=5, margin=0.5))
     published = [f.publish("FIC101", a, float(k)).verdict for k, a in enumerate(rounds)]
     assert published == [Verdict.NO_STICTION] * ROUNDS

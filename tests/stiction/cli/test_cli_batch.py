@@ -99,7 +99,7 @@ def test_json_array_and_csv_agree_with_single_files(
     files = [unit / n for n in (*GOOD, *BAD)]
     out_csv = tmp_path / "unit.csv"
     code, out, _ = _run(capsys, ["analyze", *map(str, files), "--kp", "1", "--json",
-                                 "--csv", str(out_csv)])
+                                 "--csv", str(out_csv), "--no-site"])  # each as alone
     assert code == 0
     got = json.loads(out)
     assert isinstance(got, list) and len(got) == len(files)
@@ -178,7 +178,7 @@ def test_a_hundred_files_in_one_command(tmp_path: Path,
         names.append(name)
     manifest = tmp_path / "unit.csv"
     manifest.write_text("file\n" + "\n".join(names) + "\n")
-    code, out, err = _run(capsys, ["analyze", "--manifest", str(manifest), "--json",
+    code, out, err = _run(capsys, ["analyze", "--manifest", str(manifest), "--json", "--no-site",
                                    "--sort", "file"])
     assert code == 0, err
     got = json.loads(out)
@@ -205,7 +205,7 @@ def test_manifest_cells_override_the_options(unit: Path, tmp_path: Path,
         f"{rel};;;;0;;\n"                           # line 4: op_lo without op_hi
         f"{rel};;;abc;;;\n"                         # line 5: ts no number
         f"{rel};;;;;;0\n")                          # line 6: kp 0
-    code, out, err = _run(capsys, ["analyze", "--manifest", str(manifest), "--json",
+    code, out, err = _run(capsys, ["analyze", "--manifest", str(manifest), "--json", "--no-site",
                                    "--op-range", "0", "100", "--sort", "file"])
     assert code == 0, err
     got = json.loads(out)

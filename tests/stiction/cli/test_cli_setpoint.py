@@ -17,7 +17,7 @@ from stiction.scenarios import scenario, simulate
 @pytest.fixture(scope="module")
 def export(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A good valve under a sine load, a setpoint step of 8 at 1200 s, every 2 s."""
-    sim = simulate(scenario("disturbance", sp_step=8.0, sp_step_time=1200.0), noise=0.05,
+    sim = simulate(scenario("disturbance", sp_step=8.0, sp_step_time=300.0), noise=0.05,
                    duration=4800.0, seed=2)
     path = tmp_path_factory.mktemp("sp") / "fic.csv"
     rows = ["Time,OP,PV,Set Point"] + [f"{sim.t[i]:g},{sim.op[i]:.5f},{sim.pv[i]:.5f},"
@@ -35,8 +35,8 @@ def _reason(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
 
 def test_the_setpoint_column_is_found_and_the_stretch_said(capsys, export: Path) -> None:
     reason = _reason(capsys, ["analyze", str(export)])
-    assert "Judged on samples 600-2399" in reason  # 1200 s at 2 s a sample
-    assert "50 -> 58 at sample 600" in reason
+    assert "Judged on samples 150-2399" in reason  # 300 s at 2 s a sample
+    assert "50 -> 58 at sample 150" in reason
 
 
 def test_no_sp_judges_the_whole_window(capsys, export: Path) -> None:
@@ -47,7 +47,7 @@ def test_sp_names_another_column(capsys, export: Path, tmp_path: Path) -> None:
     other = tmp_path / "renamed.csv"
     other.write_text(export.read_text().replace("Set Point", "FIC101.SP", 1))
     assert "Judged on samples" not in _reason(capsys, ["analyze", str(other)])
-    assert "Judged on samples 600-2399" in _reason(capsys, ["analyze", str(other), "--sp",
+    assert "Judged on samples 150-2399" in _reason(capsys, ["analyze", str(other), "--sp",
                                                           "fic101.sp"])
     with pytest.raises(SystemExit) as exc:
         main(["analyze", str(other), "--sp", "nope"])
@@ -62,5 +62,5 @@ def test_a_manifest_sp_column(capsys, export: Path, tmp_path: Path) -> None:
     assert main(["analyze", "--manifest", str(tmp_path / "loops.csv"), "--json",
                  "--sort", "file"]) == 0
     first, second = json.loads(capsys.readouterr().out)
-    assert "Judged on samples 600-2399" in first["reason"]
+    assert "Judged on samples 150-2399" in first["reason"]
     assert "Judged on samples" not in second["reason"]
