@@ -125,7 +125,7 @@ def _again(a: Assessment, site: Site, at: Thresholds) -> Assessment:
     c = call(dec, moved, votes, too_fast=False, at=at)
     verdict = c.verdict
     if verdict != Verdict.STICTION and not a.oscillating and c.confidence <= 0.5 and \
-            c.unbacked is None and not c.against:
+            c.unbacked is None:
         verdict = Verdict.NOT_OSCILLATING
     evidence = tuple(at_site_evidence(e, moved) for e in a.evidence)
     said = f"{site.sentence()} {network.WHAT} reads {moved:.2f} (alone {net:.2f})."

@@ -27,7 +27,7 @@ from collections.abc import Mapping
 from .._assessment import Evidence, Verdict
 from ..signal.cycle import Cycle
 from ..signal.oscillation import MIN_PERIOD
-from . import network
+from . import call, network
 from .call import Call, Thresholds
 from .enough import duration
 
@@ -48,7 +48,7 @@ __all__ = [
     "weighed",
 ]
 
-DECISION = "decision"
+DECISION = call.DECISION
 """The evidence entry of the learned decision's probability (:func:`decision_evidence`): not
 a test, so no test's vote in the reason nor in the evidence gate."""
 SAID = 3
@@ -163,7 +163,7 @@ def not_called(c: Call, cycle: Cycle, evidence: tuple[Evidence, ...],
     window without a regular cycle at a confidence of 0.5 or less is ``not_oscillating``
     (unless the decision said stiction there)."""
     conf = c.confidence
-    if not cycle.regular and conf <= 0.5 and c.unbacked is None and not c.against:
+    if not cycle.regular and conf <= 0.5 and c.unbacked is None:
         src = cycle.pv if cycle.source == "PV" else cycle.op
         what = src.osc.reason if not cycle.cycling else (
             f"a cycle of {cycle.period or 0:.0f} samples, but irregular, regularity "
@@ -182,11 +182,6 @@ def not_called(c: Call, cycle: Cycle, evidence: tuple[Evidence, ...],
         return Verdict.UNDETERMINED, (
             f"undetermined, confidence of stiction {conf:.2f}{by} but {c.unbacked}: a call of "
             f"stiction needs a test that says so. {said}")
-    if c.against and net is not None and dec is not None:
-        return Verdict.UNDETERMINED, (
-            f"undetermined, confidence of stiction {conf:.2f}: the learned decision says "
-            f"stiction ({dec:.2f}), {network.WHAT} not ({net:.2f}, under {at.band_low:.2f}). "
-            f"{said}")
     between = "the tests" if net is None else \
         f"{network.WHAT} ({at.band_low:.2f}-{at.threshold:.2f})"
     return Verdict.UNDETERMINED, (f"undetermined, confidence of stiction {conf:.2f}: between "

@@ -11,7 +11,15 @@ import pytest
 
 from stiction import Assessment, Evidence, Verdict
 from stiction.diagnosis import adapt, network
-from stiction.diagnosis.call import BY_BOTH, BY_DECISION, BY_NETWORK, Thresholds, call, shipped
+from stiction.diagnosis.call import (
+    BY_BOTH,
+    BY_DECISION,
+    BY_NETWORK,
+    Thresholds,
+    call,
+    scale_of,
+    shipped,
+)
 from stiction.diagnosis.reasons import DECISION
 
 AT = Thresholds(stiction_at=0.87, no_stiction_at=0.5, threshold=0.69, band_low=0.155)
@@ -31,7 +39,7 @@ def test_the_shipped_thresholds_are_the_models() -> None:
     (0.97, 0.90, FOR, (Verdict.STICTION, 0.97, BY_BOTH)),  # both: the higher confidence
     (0.97, 0.40, FOR, (Verdict.STICTION, 0.97, BY_DECISION)),  # the network does not object
     (0.97, 0.40, NONE, (Verdict.UNDETERMINED, 0.40, None)),  # no test backs the decision
-    (0.97, 0.05, FOR, (Verdict.UNDETERMINED, 0.05, None)),  # the network says not: they disagree
+    (0.97, 0.05, FOR, (Verdict.STICTION, 0.97, BY_DECISION)),  # a test backs the decision
     (0.60, 0.40, FOR, (Verdict.UNDETERMINED, 0.40, None)),  # the abstention band
     (0.20, 0.40, NONE, (Verdict.UNDETERMINED, 0.40, None)),  # in the band, nothing against
     (0.20, 0.40, AGAINST, (Verdict.NO_STICTION, 0.40, None)),  # in the band, all say not
@@ -143,3 +151,15 @@ def test_one_window_alone_is_scored_without_site_adaptation() -> None:
     assert "site" not in a.to_dict() and "site_share" not in a.to_dict()
     alone = adapt.site_of([a])  # one window moves the share by a tenth at most
     assert abs(alone.share - alone.source) < 0.1 * alone.source + 0.05
+
+
+def test_the_scale_of_a_confidence_is_its_sources() -> None:
+    """For what compares a confidence with a threshold after the call (a site's
+    recalibration, the gateway's hysteresis band): the network's thresholds where the
+    confidence is its probability, the decision's where it is the decision's."""
+    assert scale_of(_window(0.6, 0.3, NONE), AT) == (AT.threshold, AT.band_low)
+    assert scale_of(_window(None, 0.95, FOR, Verdict.STICTION), AT) == \
+        (AT.stiction_at, AT.no_stiction_at)
+    by_decision = dataclasses.replace(_window(0.4, 0.97, FOR, Verdict.STICTION),
+                                      confidence=0.97)
+    assert scale_of(by_decision, AT) == (AT.stiction_at, AT.no_stiction_at)
