@@ -78,9 +78,13 @@ def test_plc_sim_to_gateway_to_modbus_and_metrics() -> None:
                 text = await asyncio.to_thread(scrape, gw.metrics_port)
                 reasons = {n: (r.assessment.reason if r else "-")
                            for n, r in zip(gw.store.loops, gw.store.results, strict=True)}
-                # the demo's plant (issue 21): its sticky valve named the source of its group
-                (group,) = [g for g in gw.store.plant.groups if g.source == "U2.FIC101"]
-                assert {"U2.TIC201", "U2.LIC301"} <= set(group.loops), group
+                # the demo's plant (issue 21): the sticky valve's group holds its followers,
+                # and no other loop is named its source (with the shape network U2.FIC101's
+                # own window reads 0.2-0.6 in these short windows, undetermined, so the
+                # group may name no source: issue 36's figures, docs/accuracy.md)
+                (group,) = [g for g in gw.store.plant.groups
+                            if {"U2.TIC201", "U2.LIC301"} <= set(g.loops)]
+                assert group.source in ("U2.FIC101", None), group
                 # (almost) every simulated sample read once: at most 1 % of polls missed
                 assert gw.pollers[0].missed_ticks <= 0.01 * gw.pollers[0].polls
                 return blocks, text, reasons
