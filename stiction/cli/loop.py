@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime as dt
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,8 +27,8 @@ from .grid import SKIPPED_HOUR
 from .memory import affordable, readable
 from .plot import Clock, window_clock
 
-__all__ = ["SP_COLUMNS", "Analysed", "FileTime", "Loaded", "LoopOptions", "analyze_file",
-           "bursts", "judge", "load", "view"]
+__all__ = ["SP_COLUMNS", "Analysed", "FileTime", "Loaded", "LoopOptions", "analyze_file", "bursts",
+           "judge", "load", "rejudged", "view"]
 
 SP_COLUMNS = ("sp", "setpoint", "set point", "set_point")
 """Column names read as the setpoint when ``--sp`` is not given (any case), in this order."""
@@ -275,4 +276,21 @@ def view(a: Assessment, d: Details | None = None, stretch: dict[str, Any] | None
     parts = {} if d is None or d.parts is None else d.parts
     out["weighed"] = dict(sorted(parts.items(), key=lambda kv: -abs(kv[1])))
     out["stretch"] = stretch
+    return out
+
+
+def rejudged(rows: Sequence[Any], judge: Callable[[Assessment], Assessment]) -> list[Any]:
+    """A batch's rows (:class:`.report.Row`) with each analysed file's assessment judged
+    again by ``judge`` (the unit's calibration, the site's share) and what ``--json`` shows
+    of it redone (:func:`view`); a row not analysed stays as it is."""
+    out = []
+    for row in rows:
+        got = row.analysed
+        if got is None:
+            out.append(row)
+            continue
+        a = judge(got.assessment)
+        got = dataclasses.replace(got, assessment=a,
+                                  shown=view(a, got.details, got.shown.get("stretch")))
+        out.append(dataclasses.replace(row, shown=got.shown, analysed=got))
     return out

@@ -25,7 +25,7 @@ from ..ranking import SiteCalibration, Suspect, fit_site, rank, recalibrate, shi
 from ..report import Finding
 from ._common import UsageError
 from .findings import Found, read_findings
-from .loop import view
+from .loop import rejudged
 from .manifest import Loop
 
 __all__ = ["add_options", "calibrate", "finish", "loop_name"]
@@ -70,18 +70,8 @@ def calibrate(rows: list[Any], names: Sequence[str], found: Sequence[Found]
                 keys.append(f"{f.loop} {f.date} {rows[k].file}")
     cal = fit_site(np.array(conf, dtype=np.float64), np.array(sticky, dtype=bool), keys=keys,
                    stiction_at=stiction_at)
-    out = []
-    for row in rows:
-        got = row.analysed
-        if got is None:
-            out.append(row)
-            continue
-        a = recalibrate(got.assessment, cal, stiction_at=stiction_at,
-                        no_stiction_at=no_stiction_at)
-        got = dataclasses.replace(got, assessment=a,
-                                  shown=view(a, got.details, got.shown.get("stretch")))
-        out.append(dataclasses.replace(row, shown=got.shown, analysed=got))
-    return out, cal
+    return rejudged(rows, lambda a: recalibrate(a, cal, stiction_at=stiction_at,
+                                                no_stiction_at=no_stiction_at)), cal
 
 
 def _said(cal: SiteCalibration, used: int, given: int) -> str:

@@ -10,12 +10,11 @@ text output and ``--json`` say which (``site``)."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
 from ..diagnosis.adapt import adapt, site_of
-from .loop import view
+from .loop import rejudged
 
 __all__ = ["ALONE", "adapt_rows", "add_option", "said"]
 
@@ -39,19 +38,10 @@ def adapt_rows(rows: Sequence[Any], args: argparse.Namespace) -> tuple[list[Any]
     site = site_of(analysed)
     if len(analysed) < 2 or site.windows == 0:
         return list(rows), None
-    out = []
-    for row in rows:
-        got = row.analysed
-        if got is None:
-            out.append(row)
-            continue
-        (a,) = adapt([got.assessment], site)
-        got = dataclasses.replace(got, assessment=a,
-                                  shown=view(a, got.details, got.shown.get("stretch")))
-        out.append(dataclasses.replace(row, shown=got.shown, analysed=got))
-    return out, (f"site adaptation: {site.share:.2f} of this batch's valves estimated "
-                 f"sticky from the {site.windows} windows the shape network read (the "
-                 f"simulation: {site.source:.2f}); --no-site scores each file alone")
+    said = (f"site adaptation: {site.share:.2f} of this batch's valves estimated sticky "
+            f"from the {site.windows} windows the shape network read (the simulation: "
+            f"{site.source:.2f}); --no-site scores each file alone")
+    return rejudged(rows, lambda a: adapt([a], site)[0]), said
 
 
 def said(shown: dict[str, Any]) -> str:
