@@ -6,6 +6,8 @@ whether it is what the finding asks for. Case files import only ``stiction``, ``
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -34,3 +36,16 @@ def run(argv: list[str]) -> None:
     (name,) = argv
     said, ok = _CASES[name][2]()
     print(json.dumps({"said": said, "ok": bool(ok)}))
+
+
+def cli(*argv: str) -> tuple[int, str, str]:
+    """`stiction ARGV` as a user runs it: exit status, stdout, stderr."""
+    from stiction.cli import main  # noqa: PLC0415
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(list(argv))
+        except SystemExit as exc:
+            code = int(exc.code or 0)
+    return code, out.getvalue(), err.getvalue()

@@ -5,10 +5,8 @@ by the CLI as a user runs it."""
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import datetime as dt
-import io
 import json
 import os
 import sys
@@ -19,24 +17,12 @@ import zoneinfo
 from pathlib import Path
 from typing import Any
 
-from _case import case, run
+from _case import case, cli, run
 
 TMP = Path(tempfile.mkdtemp(prefix="caselist-cli-"))
 START = dt.datetime(2024, 3, 1, 6, 0, 0)
 TAGS = ["--op", "FIC101.OP", "--pv", "FIC101.PV"]
 
-
-def cli(*argv: str) -> tuple[int, str, str]:
-    """`stiction ARGV` as a user runs it: exit status, stdout, stderr."""
-    from stiction.cli import main  # noqa: PLC0415
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main(list(argv))
-        except SystemExit as exc:
-            code = int(exc.code or 0)
-    return code, out.getvalue(), err.getvalue()
 
 
 def refused(err: str) -> str:

@@ -5,9 +5,7 @@ on CSV files."""
 
 from __future__ import annotations
 
-import contextlib
 import csv
-import io
 import json
 import sys
 import tempfile
@@ -17,24 +15,12 @@ from typing import Any
 
 import numpy as np
 import yaml
-from _case import REPO, case, run
+from _case import REPO, case, cli, run
 
 TMP = Path(tempfile.mkdtemp(prefix="caselist-valvetest-"))
 FV101 = ["--scenario", "table4-case1", "--fs", "0.03", "--fd", "0.01", "--k", "1",
          "--noise", "0.02"]  # dead band fs + fd = 4 %, resolution fs - fd = 2 %
 
-
-def cli(*argv: str) -> tuple[int, str, str]:
-    """`stiction ARGV` as a user runs it: exit status, stdout, stderr."""
-    from stiction.cli import main  # noqa: PLC0415
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main(list(argv))
-        except SystemExit as exc:
-            code = int(exc.code or 0)
-    return code, out.getvalue(), err.getvalue()
 
 
 def simulated(name: str, *argv: str) -> Path:
